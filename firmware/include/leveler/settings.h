@@ -1,0 +1,64 @@
+/*
+ * Run-time settings: everything a supervisor may change through the holding
+ * registers, in one plain struct so a board can store it in flash as a blob.
+ * Units are in the names; pressures are absolute pascals.
+ */
+#ifndef LEVELER_SETTINGS_H
+#define LEVELER_SETTINGS_H
+
+#include <stdbool.h>
+#include <stdint.h>
+#include "leveler/hal.h"
+
+typedef enum { LEVELER_MODE_OFF = 0, LEVELER_MODE_AUTO = 1, LEVELER_MODE_MANUAL = 2 } leveler_mode;
+typedef enum { LEVELER_ALGO_NO_ACCUMULATOR = 1, LEVELER_ALGO_ACCUMULATOR = 2 } leveler_algorithm;
+
+/* Two-point calibration of one channel: counts raw_lo -> eng_lo, raw_hi -> eng_hi
+ * (eng in um for height, Pa absolute for pressures). */
+typedef struct {
+    uint16_t raw_lo;
+    uint16_t raw_hi;
+    int32_t eng_lo;
+    int32_t eng_hi;
+} leveler_calibration;
+
+typedef struct {
+    uint16_t mode;                 /* leveler_mode */
+    uint16_t algorithm;            /* leveler_algorithm */
+    int32_t band_lower_um;         /* thesis: 15.6 in */
+    int32_t band_upper_um;         /* thesis: 15.8 in */
+    int32_t acc_charge_max_pa;     /* thesis program: 126.7 psia */
+    int32_t overpressure_limit_pa; /* compressor off above this */
+    int32_t overpressure_vent_pa;  /* and vent above this */
+    uint16_t compressor_max_run_s; /* then a cool-down */
+    uint16_t compressor_cooldown_s;
+    uint16_t stall_window_s;       /* filling without rise for this long = fault */
+    int32_t stall_min_rise_pa;     /* the rise in P1/P2 that counts as progress */
+    int32_t stall_min_rise_um;     /* or this rise in height */
+    uint16_t sensor_bad_samples;   /* debounce: faulty after N bad samples */
+    uint16_t sensor_good_samples;  /* recovers after M good ones */
+    uint16_t sensor_stuck_s;       /* raw value frozen this long = stuck; 0 = off */
+    uint16_t sensor_stale_ms;      /* no fresh reading this long = stale */
+    uint16_t modbus_address;       /* 1..247 */
+    uint16_t modbus_baud_div100;   /* 19200 baud = 192 */
+    leveler_calibration calibration[HAL_ADC_COUNT];
+} leveler_settings;
+
+/* Factory defaults (the thesis rig). */
+void leveler_settings_defaults(leveler_settings *out);
+
+/* The settings in force. */
+const leveler_settings *leveler_settings_current(void);
+
+/* Validate a whole settings struct (ranges and consistency, e.g. band lower < upper).
+ * Returns 0 when valid, else a leveler_reg_reason code (see regmap.h). */
+uint16_t leveler_settings_check(const leveler_settings *s);
+
+/* Replace the settings in force after leveler_settings_check(); refused
+ * settings change nothing. Used by a board restoring its flash copy. */
+uint16_t leveler_settings_apply(const leveler_settings *s);
+
+/* Increments on every accepted change, so a board knows when to persist. */
+uint32_t leveler_settings_generation(void);
+
+#endif /* LEVELER_SETTINGS_H */
