@@ -1,0 +1,51 @@
+/*
+ * Run-log writer: one CSV format for simulator, rig and diagnosis
+ * (docs/log-format.md). SI units, absolute pressures.
+ *
+ *   # leveler run log, format 1
+ *   # config: thesis-900lb
+ *   # source: sim            (or rig)
+ *   t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,solenoid,vent,acc_valve
+ *
+ * Lines are written whole (one write per line, line-buffered), so a process
+ * stopped by SIGTERM leaves no torn line. Optional rotation by size, with
+ * fsync on rotation and on close.
+ */
+#ifndef LEVELER_RUNLOG_H
+#define LEVELER_RUNLOG_H
+
+#include <stddef.h>
+
+#define RUNLOG_FORMAT_VERSION 1
+
+typedef struct {
+    double t_s;
+    double height_m;
+    double p_spring_pa; /* NAN = not measured: empty cell */
+    double p_pipe_pa;   /* NAN = empty */
+    double p_acc_pa;    /* NAN = empty */
+    double load_n;
+    int compressor;     /* 0/1, -1 = empty */
+    int solenoid;
+    int vent;
+    int acc_valve;
+} runlog_row;
+
+typedef struct {
+    const char *path;         /* "-" = stdout */
+    const char *config_name;
+    const char *source;       /* "sim" or "rig" */
+    size_t rotate_bytes;      /* 0 = never rotate; else start path.1, path.2 ... past this size */
+    unsigned keep_files;      /* rotated files kept (oldest removed) */
+} runlog_options;
+
+typedef struct runlog runlog;
+
+/* NULL on failure, with a message naming the path in err. */
+runlog *runlog_open(const runlog_options *options, char *err, size_t err_len);
+/* 0 on success, -1 on an I/O error (errno set). */
+int runlog_write(runlog *log, const runlog_row *row);
+/* Flush, fsync and close. 0 on success. */
+int runlog_close(runlog *log);
+
+#endif /* LEVELER_RUNLOG_H */
