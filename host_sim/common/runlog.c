@@ -1,0 +1,255 @@
+/*
+ * Run-log writer (runlog.h, docs/log-format.md).
+ *
+ * Every line is formatted into a buffer first and handed to the kernel with
+ * one write() (looping only on a partial write or EINTR), so there is no stdio
+ * buffer that a SIGTERM could leave half-flushed: a reader sees whole lines.
+ * Rotation: when the next line would push the current file past rotate_bytes,
+ * the file is fsync'ed and closed, path.(k) -> path.(k+1) for k = keep-1..1,
+ * path -> path.1, and a fresh path starts with the same header.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include "runlog.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#define RUNLOG_LINE_MAX 512
+#define RUNLOG_HEADER_MAX 1024
+
+struct runlog {
+    int fd;
+    int is_stdout;
+    char *path;
+    size_t rotate_bytes;
+    unsigned keep_files;
+    size_t file_bytes; /* bytes in the current file, header included */
+    char header[RUNLOG_HEADER_MAX];
+    size_t header_len;
+};
+
+static int write_all(int fd, const char *buf, size_t len)
+{
+    while (len > 0) {
+        ssize_t n = write(fd, buf, len);
+        if (n < 0) {
+            if (errno == EINTR)
+                continue;
+            return -1;
+        }
+        buf += n;
+        len -= (size_t)n;
+    }
+    return 0;
+}
+
+static int open_fresh(runlog *log)
+{
+    log->fd = open(log->path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (log->fd < 0)
+        return -1;
+    log->file_bytes = 0;
+    if (write_all(log->fd, log->header, log->header_len) != 0)
+        return -1;
+    log->file_bytes = log->header_len;
+    return 0;
+}
+
+/* path.N into buf; -1 if it does not fit. */
+static int numbered_path(char *buf, size_t cap, const char *path, unsigned n)
+{
+    int len = snprintf(buf, cap, "%s.%u", path, n);
+    return (len < 0 || (size_t)len >= cap) ? -1 : 0;
+}
+
+static int rotate(runlog *log)
+{
+    if (fsync(log->fd) != 0 || close(log->fd) != 0) {
+        log->fd = -1;
+        return -1;
+    }
+    log->fd = -1;
+    size_t cap = strlen(log->path) + 16;
+    char *from = malloc(cap);
+    char *to = malloc(cap);
+    int rc = -1;
+    if (from == NULL || to == NULL)
+        goto out;
+    if (log->keep_files == 0) {
+        if (unlink(log->path) != 0 && errno != ENOENT)
+            goto out;
+    } else {
+        /* Drop the oldest, then shift each one up by one. */
+        numbered_path(to, cap, log->path, log->keep_files);
+        if (unlink(to) != 0 && errno != ENOENT)
+            goto out;
+        for (unsigned k = log->keep_files - 1; k >= 1; k--) {
+            numbered_path(from, cap, log->path, k);
+            numbered_path(to, cap, log->path, k + 1);
+            if (rename(from, to) != 0 && errno != ENOENT)
+                goto out;
+        }
+        numbered_path(to, cap, log->path, 1);
+        if (rename(log->path, to) != 0)
+            goto out;
+    }
+    rc = open_fresh(log);
+out:
+    free(from);
+    free(to);
+    return rc;
+}
+
+runlog *runlog_open(const runlog_options *options, char *err, size_t err_len)
+{
+    if (options == NULL || options->path == NULL || options->path[0] == '\0') {
+        snprintf(err, err_len, "runlog: no path given");
+        return NULL;
+    }
+    runlog *log = calloc(1, sizeof *log);
+    if (log == NULL) {
+        snprintf(err, err_len, "runlog: %s: out of memory", options->path);
+        return NULL;
+    }
+    log->fd = -1;
+    log->is_stdout = strcmp(options->path, "-") == 0;
+    log->rotate_bytes = log->is_stdout ? 0 : options->rotate_bytes;
+    log->keep_files = options->keep_files;
+    log->path = strdup(options->path);
+    int hlen = snprintf(log->header, sizeof log->header,
+                        "# leveler run log, format %d\n# config: %s\n# source: %s\n"
+                        "t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,"
+                        "compressor,solenoid,vent,acc_valve\n",
+                        RUNLOG_FORMAT_VERSION,
+                        options->config_name ? options->config_name : "",
+                        options->source ? options->source : "");
+    if (log->path == NULL || hlen < 0 || (size_t)hlen >= sizeof log->header) {
+        snprintf(err, err_len, "runlog: %s: header too long (config or source name)", options->path);
+        free(log->path);
+        free(log);
+        return NULL;
+    }
+    log->header_len = (size_t)hlen;
+    if (log->is_stdout) {
+        log->fd = STDOUT_FILENO;
+        if (write_all(log->fd, log->header, log->header_len) != 0) {
+            snprintf(err, err_len, "runlog: stdout: %s", strerror(errno));
+            free(log->path);
+            free(log);
+            return NULL;
+        }
+        return log;
+    }
+    if (open_fresh(log) != 0) {
+        snprintf(err, err_len, "runlog: %s: %s", options->path, strerror(errno));
+        if (log->fd >= 0)
+            close(log->fd);
+        free(log->path);
+        free(log);
+        return NULL;
+    }
+    return log;
+}
+
+/* Appends to a fixed line buffer; any overflow sticks and fails the line. */
+typedef struct {
+    char buf[RUNLOG_LINE_MAX];
+    size_t len;
+    int overflow;
+} line_buffer;
+
+__attribute__((format(printf, 2, 3)))
+static void append(line_buffer *line, const char *fmt, ...)
+{
+    if (line->overflow)
+        return;
+    size_t cap = sizeof line->buf - line->len;
+    va_list args;
+    va_start(args, fmt);
+    int n = vsnprintf(line->buf + line->len, cap, fmt, args);
+    va_end(args);
+    if (n < 0 || (size_t)n >= cap)
+        line->overflow = 1;
+    else
+        line->len += (size_t)n;
+}
+
+/* A measurement; not-a-number (not measured) or infinite -> empty cell. */
+static void put_number(line_buffer *line, double v)
+{
+    if (isfinite(v))
+        append(line, ",%.9g", v);
+    else
+        append(line, ",");
+}
+
+/* An actuator state 0/1; -1 (unknown) -> empty cell. */
+static void put_flag(line_buffer *line, int v)
+{
+    if (v < 0)
+        append(line, ",");
+    else
+        append(line, ",%d", v ? 1 : 0);
+}
+
+int runlog_write(runlog *log, const runlog_row *row)
+{
+    if (log == NULL || row == NULL || log->fd < 0) {
+        errno = EBADF;
+        return -1;
+    }
+    line_buffer line = {.len = 0, .overflow = 0};
+    append(&line, "%.6f", row->t_s);
+    put_number(&line, row->height_m);
+    put_number(&line, row->p_spring_pa);
+    put_number(&line, row->p_pipe_pa);
+    put_number(&line, row->p_acc_pa);
+    put_number(&line, row->load_n);
+    put_flag(&line, row->compressor);
+    put_flag(&line, row->solenoid);
+    put_flag(&line, row->vent);
+    put_flag(&line, row->acc_valve);
+    append(&line, "\n");
+    if (line.overflow) {
+        errno = EOVERFLOW;
+        return -1;
+    }
+
+    if (log->rotate_bytes > 0 && log->file_bytes > log->header_len &&
+        log->file_bytes + line.len > log->rotate_bytes) {
+        if (rotate(log) != 0)
+            return -1;
+    }
+    if (write_all(log->fd, line.buf, line.len) != 0)
+        return -1;
+    log->file_bytes += line.len;
+    return 0;
+}
+
+int runlog_close(runlog *log)
+{
+    if (log == NULL)
+        return 0;
+    int rc = 0;
+    if (log->is_stdout) {
+        /* fsync on a pipe or terminal fails with EINVAL: nothing to sync there. */
+        if (fsync(log->fd) != 0 && errno != EINVAL && errno != EROFS)
+            rc = -1;
+    } else if (log->fd >= 0) {
+        if (fsync(log->fd) != 0)
+            rc = -1;
+        if (close(log->fd) != 0)
+            rc = -1;
+    } else {
+        rc = -1; /* a failed rotation left no file open */
+    }
+    free(log->path);
+    free(log);
+    return rc;
+}
