@@ -1,0 +1,135 @@
+"""Where the gap lies: residual tables per phase and signal, event figures.
+
+Residual = simulated - real, on the real run's time base. Signals are
+weighted by fixed physical scales (SCALES) so that one number, the
+normalised RMS, compares height and pressures.
+"""
+import numpy as np
+
+from . import phases as ph
+
+# One unit of normalised error: 1 mm of height, 2 kPa of spring pressure,
+# 5 kPa of pipe pressure (it swings with every compressor stroke), 2 kPa accumulator.
+SCALES = {"height_m": 1.0e-3, "p_spring_pa": 2.0e3, "p_pipe_pa": 5.0e3, "p_acc_pa": 2.0e3}
+SIGNAL_LABEL = {"height_m": "height", "p_spring_pa": "P2", "p_pipe_pa": "P1", "p_acc_pa": "P3"}
+DISPLAY = {"height_m": (1e3, "mm"), "p_spring_pa": (1e-3, "kPa"), "p_pipe_pa": (1e-3, "kPa"),
+           "p_acc_pa": (1e-3, "kPa")}
+
+
+def used_signals(run):
+    return [s for s in SCALES if run.measured(s)]
+
+
+def residuals(run, trace):
+    """dict signal -> residual array (NaN where the real signal is not measured)."""
+    out = {}
+    for s in used_signals(run):
+        sim = trace.signals.get(s)
+        if sim is None or not np.isfinite(sim).any():
+            continue
+        out[s] = sim - run.signals[s]
+    return out
+
+
+def normalised_rms(run, trace, mask=None):
+    """sqrt(mean over signals of (RMS/scale)^2): the one-number gap."""
+    res = residuals(run, trace)
+    acc = []
+    for s, r in res.items():
+        m = np.isfinite(r) if mask is None else (np.isfinite(r) & mask)
+        if m.sum() == 0:
+            continue
+        acc.append(np.mean((r[m] / SCALES[s]) ** 2))
+    return float(np.sqrt(np.mean(acc))) if acc else float("nan")
+
+
+def gap_over_runs(runs, traces, labels=None):
+    """Pooled normalised gap and per-signal RMS in display units over several runs."""
+    sq = {}
+    cnt = {}
+    for i, (run, tr) in enumerate(zip(runs, traces)):
+        for s, r in residuals(run, tr).items():
+            m = np.isfinite(r)
+            if labels is not None:
+                m &= labels[i]
+            sq[s] = sq.get(s, 0.0) + float(np.sum(r[m] ** 2))
+            cnt[s] = cnt.get(s, 0) + int(m.sum())
+    out = {}
+    norm = []
+    for s in sq:
+        if cnt[s] == 0:
+            continue
+        rms = np.sqrt(sq[s] / cnt[s])
+        k, unit = DISPLAY[s]
+        out[f"rms_{SIGNAL_LABEL[s].lower()}_{unit.lower()}"] = rms * k
+        norm.append((rms / SCALES[s]) ** 2)
+    out["normalised"] = float(np.sqrt(np.mean(norm))) if norm else float("nan")
+    return out
+
+
+def phase_table(run, trace, labels):
+    """Rows: phase x signal with bias, RMS (display units), samples and share of the gap."""
+    res = residuals(run, trace)
+    rows = []
+    total = 0.0
+    for p in ph.PHASES:
+        m = labels == p
+        if m.sum() == 0:
+            continue
+        for s, r in res.items():
+            mm = m & np.isfinite(r)
+            if mm.sum() == 0:
+                continue
+            k, unit = DISPLAY[s]
+            e = float(np.sum((r[mm] / SCALES[s]) ** 2))
+            total += e
+            rows.append({"run": run.name, "phase": p, "signal": SIGNAL_LABEL[s], "unit": unit,
+                         "bias": float(np.mean(r[mm]) * k), "rms": float(np.sqrt(np.mean(r[mm] ** 2)) * k),
+                         "samples": int(mm.sum()), "_energy": e})
+    for r in rows:
+        r["share_pct"] = 100.0 * r.pop("_energy") / total if total > 0 else 0.0
+    return rows
+
+
+def rank_places(tables):
+    """Merge phase tables of several runs; rank (phase, signal) by share of the gap."""
+    merged = {}
+    for rows in tables:
+        for r in rows:
+            key = (r["phase"], r["signal"])
+            m = merged.setdefault(key, {"phase": r["phase"], "signal": r["signal"], "unit": r["unit"],
+                                        "share_pct": 0.0, "bias_sum": 0.0, "sq_sum": 0.0, "samples": 0})
+            m["share_pct"] += r["share_pct"] / len(tables)
+            m["bias_sum"] += r["bias"] * r["samples"]
+            m["sq_sum"] += r["rms"] ** 2 * r["samples"]
+            m["samples"] += r["samples"]
+    out = []
+    for m in merged.values():
+        n = max(m["samples"], 1)
+        out.append({"phase": m["phase"], "signal": m["signal"], "unit": m["unit"],
+                    "bias": m["bias_sum"] / n, "rms": float(np.sqrt(m["sq_sum"] / n)),
+                    "share_pct": m["share_pct"], "samples": m["samples"]})
+    out.sort(key=lambda r: -r["share_pct"])
+    for i, r in enumerate(out, 1):
+        r["rank"] = i
+    return out
+
+
+def event_figures(t_s, signals, load_n):
+    """Thesis event figures (leveler.events, flat snake_case SI keys); {} if unavailable."""
+    try:
+        from leveler import events
+    except ImportError:
+        return {}
+    fn = getattr(events, "event_figures", None) or getattr(events, "extract", None)
+    if fn is None:
+        return {}
+    try:
+        out = fn(t_s=t_s, height_m=signals["height_m"], p_spring_pa=signals["p_spring_pa"], load_n=load_n)
+    except Exception:  # a trace without the thesis events (e.g. no load step)
+        return {}
+    return {k: float(v) for k, v in dict(out).items() if v is not None and np.isfinite(v)}
+
+
+def event_differences(real, sim):
+    return {k: sim[k] - real[k] for k in real if k in sim}

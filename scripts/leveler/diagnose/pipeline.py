@@ -1,0 +1,149 @@
+"""The diagnosis, start to end: where the gap lies, which effect, how far it shrinks."""
+import time
+
+import numpy as np
+
+from . import effects as fx
+from . import fit
+from . import gap
+from . import phases as ph
+
+# A candidate must shrink the held-out gap by at least this much to be named;
+# otherwise the answer is `none` (noise and parameter drift stay below it).
+THRESHOLD_PCT = 15.0
+
+
+def _labels(run):
+    return ph.split(run.t_s, run.signals["height_m"], run.load_n)
+
+
+def where_table(problem, runs):
+    """Nominal simulation of each run, phase tables and the ranked places of the gap."""
+    tables = []
+    traces = []
+    per_run = []
+    for run in runs:
+        tr = problem.simulate(run, None, {})
+        labels = _labels(run)
+        rows = gap.phase_table(run, tr, labels)
+        tables.append(rows)
+        traces.append(tr)
+        ev_real = gap.event_figures(run.t_s, run.signals, run.load_n)
+        ev_sim = gap.event_figures(tr.t_s, tr.signals, run.load_n)
+        per_run.append({"run": run.name, "mode": fit.choose_mode(run, problem.mode),
+                        "phases": ph.spans(run.t_s, labels), "table": rows,
+                        "events_real": ev_real, "events_nominal": ev_sim,
+                        "events_difference": gap.event_differences(ev_real, ev_sim)})
+    return {"ranked": gap.rank_places(tables), "runs": per_run}, traces
+
+
+def before_after(runs, nominal, augmented):
+    """Held-out gaps overall and per phase, nominal vs augmented, and the shrink."""
+    labels = [_labels(r) for r in runs]
+    out = {"overall": {"before": gap.gap_over_runs(runs, nominal),
+                       "after": gap.gap_over_runs(runs, augmented)}}
+    per_phase = {}
+    for p in ph.PHASES:
+        masks = [lab == p for lab in labels]
+        if not any(m.any() for m in masks):
+            continue
+        b = gap.gap_over_runs(runs, nominal, masks)
+        a = gap.gap_over_runs(runs, augmented, masks)
+        per_phase[p] = {"before": b, "after": a, "shrink_pct": shrink(b["normalised"], a["normalised"])}
+    out["per_phase"] = per_phase
+    ev = []
+    for r, n, a in zip(runs, nominal, augmented):
+        e_real = gap.event_figures(r.t_s, r.signals, r.load_n)
+        ev.append({"run": r.name, "real": e_real,
+                   "nominal": gap.event_figures(n.t_s, n.signals, r.load_n),
+                   "augmented": gap.event_figures(a.t_s, a.signals, r.load_n)})
+    out["events"] = ev
+    return out
+
+
+def shrink(before, after):
+    if not (before > 0 and np.isfinite(before) and np.isfinite(after)):
+        return 0.0
+    return float(100.0 * (1.0 - after / before))
+
+
+def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jobs=None,
+             progress=print, fit_opts=None):
+    """Returns (result dict for diagnosis.json, traces for the report)."""
+    t0 = time.perf_counter()
+    candidates = candidates or fx.NAMES
+    cal_problem = fit.Problem(sim, config, calib, mode)
+    hold_problem = fit.Problem(sim, config, holdout, mode)
+
+    progress(f"[1/3] where the gap lies: nominal simulation of {len(calib) + len(holdout)} run(s)")
+    where, _ = where_table(cal_problem, list(calib) + list(holdout))
+    nominal_hold = [hold_problem.simulate(r, None, {}) for r in holdout]
+    nominal_cal_gap = cal_problem.gap(None, {})
+    nominal_hold_gap = hold_problem.gap(None, {})
+    for w in where["ranked"][:3]:
+        progress(f"      #{w['rank']} {w['phase']:<10} {w['signal']:<6} bias {w['bias']:+.2f} {w['unit']}, "
+                 f"RMS {w['rms']:.2f} {w['unit']} ({w['share_pct']:.0f}% of the gap)")
+
+    progress(f"[2/3] fitting {len(candidates)} candidate effect(s) on {len(calib)} run(s), "
+             f"scoring on {len(holdout)} held-out run(s)")
+    done = [0]
+
+    def on_fit(name, r):
+        done[0] += 1
+        progress(f"      {done[0]}/{len(candidates)} {name:<15} held-out gap {r['holdout_gap']:.3f} "
+                 f"(nominal {nominal_hold_gap:.3f}, {shrink(nominal_hold_gap, r['holdout_gap']):+.1f}%) "
+                 f"in {r['seconds']:.1f} s")
+
+    fits = fit.fit_all(spec, config, calib, holdout, mode, candidates, jobs, on_fit, fit_opts)
+    ranking = []
+    for name in candidates:
+        r = fits[name]
+        e = fx.get(name)
+        ranking.append({
+            "effect": name,
+            "params": {p.name: {"value": r["params"][p.name], "lo": p.lo, "hi": p.hi,
+                                "at_bound": bool(np.isclose(r["params"][p.name], p.lo, rtol=1e-3, atol=1e-12)
+                                                 or np.isclose(r["params"][p.name], p.hi, rtol=1e-3))}
+                       for p in e.params},
+            "calibration_gap": r["calibration_gap"],
+            "calibration_shrink_pct": shrink(nominal_cal_gap, r["calibration_gap"]),
+            "holdout_gap": r["holdout_gap"],
+            "shrink_pct": shrink(nominal_hold_gap, r["holdout_gap"]),
+            "simulations": r["simulations"],
+            "seconds": r["seconds"],
+        })
+    ranking.sort(key=lambda x: -x["shrink_pct"])
+    for i, r in enumerate(ranking, 1):
+        r["rank"] = i
+    best = ranking[0]
+    runner = ranking[1] if len(ranking) > 1 else None
+    named = best["shrink_pct"] >= THRESHOLD_PCT
+    winner = best["effect"] if named else "none"
+
+    progress(f"[3/3] before/after on held-out runs ({'winner ' + winner if named else 'no effect'})")
+    if named:
+        fitted = {k: v["value"] for k, v in best["params"].items()}
+        aug_hold = [hold_problem.simulate(r, winner, fitted) for r in holdout]
+    else:
+        aug_hold = nominal_hold
+    ba = before_after(holdout, nominal_hold, aug_hold)
+    result = {
+        "config": config,
+        "mode": mode,
+        "calibration_runs": [r.name for r in calib],
+        "holdout_runs": [r.name for r in holdout],
+        "threshold_pct": THRESHOLD_PCT,
+        "where": where,
+        "ranking": ranking,
+        "effect": winner,
+        "margin_pct": (best["shrink_pct"] - runner["shrink_pct"]) if runner else None,
+        "runner_up": runner["effect"] if runner else None,
+        "gap_before": ba["overall"]["before"],
+        "gap_after": ba["overall"]["after"],
+        "shrink_pct": shrink(ba["overall"]["before"]["normalised"], ba["overall"]["after"]["normalised"]),
+        "per_phase": ba["per_phase"],
+        "events": ba["events"],
+        "seconds": time.perf_counter() - t0,
+    }
+    traces = {"holdout": holdout, "nominal": nominal_hold, "augmented": aug_hold}
+    return result, traces

@@ -1,0 +1,149 @@
+"""DIR/diagnosis.json and DIR/report.html (plots embedded as base64 PNG)."""
+import base64
+import html
+import io
+import json
+
+import matplotlib
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+M_PER_IN = 0.0254
+PA_PER_PSI = 6894.757
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(type(o))
+
+
+def write_json(path, result):
+    """Strict JSON: NaN/inf (a figure that could not be computed) become null."""
+    with open(path, "w") as fh:
+        json.dump(_clean(result), fh, indent=2, default=_json_default, allow_nan=False)
+        fh.write("\n")
+
+
+def _clean(o):
+    if isinstance(o, (float, np.floating)):
+        return float(o) if np.isfinite(o) else None
+    if isinstance(o, dict):
+        return {k: _clean(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_clean(v) for v in o]
+    return o
+
+
+def _png(fig):
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    plt.close(fig)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _trace_plot(run, nom, aug, effect):
+    fig, axes = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True)
+    for ax, sig, k, unit in ((axes[0], "height_m", 1e3, "height (mm)"),
+                             (axes[1], "p_spring_pa", 1e-3, "P2 (kPa abs)"),
+                             (axes[2], "p_pipe_pa", 1e-3, "P1 (kPa abs)")):
+        ax.plot(run.t_s, run.signals[sig] * k, color="k", lw=1.0, label="real")
+        ax.plot(nom.t_s, nom.signals[sig] * k, color="tab:blue", lw=1.0, label="nominal")
+        if effect != "none":
+            ax.plot(aug.t_s, aug.signals[sig] * k, color="tab:red", lw=1.0, ls="--", label=f"+ {effect}")
+        ax.set_ylabel(unit)
+        ax.grid(alpha=0.3)
+    axes[0].legend(loc="best", fontsize=8)
+    axes[-1].set_xlabel("t (s)")
+    axes[0].set_title(run.name)
+    return _png(fig)
+
+
+def _loop_plot(run, nom, aug, effect):
+    fig, ax = plt.subplots(figsize=(6, 5))
+    ax.plot(run.signals["p_spring_pa"] * 1e-3, run.signals["height_m"] * 1e3, "k", lw=1, label="real")
+    ax.plot(nom.signals["p_spring_pa"] * 1e-3, nom.signals["height_m"] * 1e3, color="tab:blue", lw=1,
+            label="nominal")
+    if effect != "none":
+        ax.plot(aug.signals["p_spring_pa"] * 1e-3, aug.signals["height_m"] * 1e3, color="tab:red", lw=1,
+                ls="--", label=f"+ {effect}")
+    ax.set_xlabel("P2 (kPa abs)")
+    ax.set_ylabel("height (mm)")
+    ax.set_title(f"P2 against height: {run.name}")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _png(fig)
+
+
+def _table(rows, cols):
+    h = ["<table><tr>" + "".join(f"<th>{html.escape(c)}</th>" for c, _ in cols) + "</tr>"]
+    for r in rows:
+        cells = []
+        for _, f in cols:
+            v = f(r)
+            cells.append(f"<td>{html.escape(v if isinstance(v, str) else f'{v:.3g}')}</td>")
+        h.append("<tr>" + "".join(cells) + "</tr>")
+    h.append("</table>")
+    return "\n".join(h)
+
+
+def write_html(path, result, traces):
+    eff = result["effect"]
+    parts = [
+        "<!doctype html><html><head><meta charset='utf-8'><title>leveler diagnosis</title>",
+        "<style>body{font-family:sans-serif;max-width:1000px;margin:auto}"
+        "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:2px 6px;"
+        "font-size:90%}th{background:#eee}</style></head><body>",
+        f"<h1>Sim-to-real diagnosis: {html.escape(result['config'])}</h1>",
+        f"<p>Calibration runs: {html.escape(', '.join(result['calibration_runs']))}. "
+        f"Held-out runs: {html.escape(', '.join(result['holdout_runs']))}.</p>",
+        f"<h2>Verdict: <code>{html.escape(eff)}</code></h2>",
+    ]
+    if eff != "none":
+        parts.append(f"<p>Held-out gap shrinks by {result['shrink_pct']:.1f}% "
+                     f"(margin over {html.escape(str(result['runner_up']))}: {result['margin_pct']:.1f} points; "
+                     f"threshold {result['threshold_pct']:.0f}%).</p>")
+    else:
+        parts.append(f"<p>No candidate shrinks the held-out gap by {result['threshold_pct']:.0f}% or more.</p>")
+    gb, ga = result["gap_before"], result["gap_after"]
+    parts.append(_table([{"k": k, "b": gb[k], "a": ga.get(k, float('nan'))} for k in gb],
+                        [("held-out gap", lambda r: r["k"]), ("nominal", lambda r: r["b"]),
+                         ("augmented", lambda r: r["a"])]))
+    parts.append("<h2>Ranking of candidate effects (held-out)</h2>")
+    parts.append(_table(result["ranking"], [
+        ("rank", lambda r: str(r["rank"])), ("effect", lambda r: r["effect"]),
+        ("held-out shrink %", lambda r: r["shrink_pct"]),
+        ("calibration shrink %", lambda r: r["calibration_shrink_pct"]),
+        ("held-out gap", lambda r: r["holdout_gap"]),
+        ("parameters", lambda r: ", ".join(f"{k}={v['value']:.3g} [{v['lo']:.3g}, {v['hi']:.3g}]"
+                                           for k, v in r["params"].items()))]))
+    parts.append("<h2>Where the gap lies (nominal model, all runs)</h2>")
+    parts.append(_table(result["where"]["ranked"][:16], [
+        ("rank", lambda r: str(r["rank"])), ("phase", lambda r: r["phase"]), ("signal", lambda r: r["signal"]),
+        ("bias", lambda r: r["bias"]), ("RMS", lambda r: r["rms"]), ("unit", lambda r: r["unit"]),
+        ("share %", lambda r: r["share_pct"])]))
+    parts.append("<h2>Per phase, held-out (normalised gap)</h2>")
+    parts.append(_table([{"p": p, **v} for p, v in result["per_phase"].items()], [
+        ("phase", lambda r: r["p"]), ("nominal", lambda r: r["before"]["normalised"]),
+        ("augmented", lambda r: r["after"]["normalised"]), ("shrink %", lambda r: r["shrink_pct"])]))
+    for ev in result["events"]:
+        if not ev["real"]:
+            continue
+        parts.append(f"<h3>Event figures: {html.escape(ev['run'])}</h3>")
+        parts.append(_table([{"k": k} for k in ev["real"]], [
+            ("figure", lambda r: r["k"]), ("real", lambda r: ev["real"][r["k"]]),
+            ("nominal", lambda r: ev["nominal"].get(r["k"], float("nan"))),
+            ("augmented", lambda r: ev["augmented"].get(r["k"], float("nan")))]))
+    if traces:
+        parts.append("<h2>Traces (held-out)</h2>")
+        for run, nom, aug in zip(traces["holdout"], traces["nominal"], traces["augmented"]):
+            if not hasattr(run, "signals"):
+                continue
+            parts.append(f"<img src='data:image/png;base64,{_trace_plot(run, nom, aug, eff)}'>")
+            parts.append(f"<img src='data:image/png;base64,{_loop_plot(run, nom, aug, eff)}'>")
+    parts.append("</body></html>")
+    with open(path, "w") as fh:
+        fh.write("\n".join(parts))
