@@ -116,19 +116,14 @@ def rank_places(tables):
 
 
 def event_figures(t_s, signals, load_n):
-    """Thesis event figures (leveler.events, flat snake_case SI keys); {} if unavailable."""
-    try:
-        from leveler import events
-    except ImportError:
-        return {}
-    fn = getattr(events, "event_figures", None) or getattr(events, "extract", None)
-    if fn is None:
-        return {}
-    try:
-        out = fn(t_s=t_s, height_m=signals["height_m"], p_spring_pa=signals["p_spring_pa"], load_n=load_n)
-    except Exception:  # a trace without the thesis events (e.g. no load step)
-        return {}
-    return {k: float(v) for k, v in dict(out).items() if v is not None and np.isfinite(v)}
+    """Thesis event figures (leveler.events: flat snake_case SI keys), undefined ones left out."""
+    from types import SimpleNamespace
+
+    from leveler import events
+    log = SimpleNamespace(t_s=np.asarray(t_s), height_m=np.asarray(signals["height_m"]),
+                          p_spring_pa=np.asarray(signals["p_spring_pa"]), load_n=np.asarray(load_n))
+    out = events.summarize(log)
+    return {k: float(v) for k, v in out.items() if v is not None and np.isfinite(v)}
 
 
 def event_differences(real, sim):
