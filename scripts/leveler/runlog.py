@@ -1,0 +1,363 @@
+"""Read and write the leveler run log (docs/log-format.md).
+
+One CSV format for the simulator, the rig and the diagnosis tool::
+
+    # leveler run log, format 1
+    # config: thesis-900lb
+    # source: sim
+    t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,solenoid,vent,acc_valve
+    0.000000,0.39751,613633.1,613633.1,,4003.4,0,0,0,0
+
+SI units, absolute pressures. Pressure and actuator cells may be empty where
+the rig does not measure them; they read as NaN. ``t_s``, ``height_m`` and
+``load_n`` are required in every row.
+
+``read(path)`` returns a :class:`RunLog`; any problem raises
+:class:`RunLogError`, whose message starts with ``file:line:`` and names the
+column. ``write(path, log)`` writes atomically (temporary file + rename).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import math
+import os
+import re
+import tempfile
+from typing import Dict, Optional
+
+import numpy as np
+
+FORMAT_VERSION = 1
+SUPPORTED_VERSIONS = (1,)
+
+COLUMNS = ("t_s", "height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa", "load_n",
+           "compressor", "solenoid", "vent", "acc_valve")
+REQUIRED = ("t_s", "height_m", "load_n")          # never empty
+PRESSURES = ("p_spring_pa", "p_pipe_pa", "p_acc_pa")
+ACTUATORS = ("compressor", "solenoid", "vent", "acc_valve")
+SOURCES = ("sim", "rig")
+
+_TITLE = re.compile(r"^#\s*leveler run log,\s*format\s+(\S+)\s*$")
+_KEY_VALUE = re.compile(r"^#\s*([A-Za-z0-9_.\-]+)\s*:\s*(.*?)\s*$")
+
+
+class RunLogError(ValueError):
+    """A malformed run log; ``str()`` reads ``file:line: what is wrong``."""
+
+    def __init__(self, path, line, message):
+        self.path = str(path)
+        self.line = line
+        self.message = message
+        where = f"{self.path}:{line}" if line is not None else self.path
+        super().__init__(f"{where}: {message}")
+
+
+@dataclasses.dataclass
+class RunLog:
+    """A run log in memory. Arrays are float64, one entry per row.
+
+    Actuator arrays hold 0.0 / 1.0, NaN where the cell was empty; pressure
+    arrays hold absolute Pa, NaN where empty.
+    """
+    t_s: np.ndarray
+    height_m: np.ndarray
+    p_spring_pa: np.ndarray
+    p_pipe_pa: np.ndarray
+    p_acc_pa: np.ndarray
+    load_n: np.ndarray
+    compressor: np.ndarray
+    solenoid: np.ndarray
+    vent: np.ndarray
+    acc_valve: np.ndarray
+    format_version: int = FORMAT_VERSION
+    config: str = ""
+    source: str = "sim"
+    meta: Dict[str, str] = dataclasses.field(default_factory=dict)
+    path: Optional[str] = None
+
+    def __len__(self):
+        return len(self.t_s)
+
+    def column(self, name):
+        return getattr(self, name)
+
+    @classmethod
+    def from_arrays(cls, t_s, height_m, load_n, p_spring_pa=None, p_pipe_pa=None,
+                    p_acc_pa=None, compressor=None, solenoid=None, vent=None,
+                    acc_valve=None, config="", source="sim", meta=None):
+        """Builds a log from arrays; missing optional columns become NaN."""
+        t = np.asarray(t_s, dtype=float)
+        n = len(t)
+
+        def col(v):
+            if v is None:
+                return np.full(n, np.nan)
+            a = np.asarray(v, dtype=float)
+            if a.shape == ():
+                a = np.full(n, float(a))
+            if a.shape != (n,):
+                raise ValueError(f"column has {a.shape} entries, t_s has {n}")
+            return a
+        return cls(t, col(height_m), col(p_spring_pa), col(p_pipe_pa), col(p_acc_pa),
+                   col(load_n), col(compressor), col(solenoid), col(vent), col(acc_valve),
+                   FORMAT_VERSION, config, source, dict(meta or {}))
+
+
+# --- units detection -----------------------------------------------------------
+# Plausible ranges for this product (a rolling-lobe air spring, 0.1..1 MPa).
+HEIGHT_RANGE_M = (0.05, 2.0)
+PRESSURE_RANGE_PA = (5.0e4, 5.0e6)       # absolute; below ~0.5 atm is not this system
+LOAD_RANGE_N = (0.0, 1.0e5)
+
+
+def _range_text(values):
+    return f"{np.nanmin(values):.6g}..{np.nanmax(values):.6g}"
+
+
+def check_units(column, values):
+    """Returns None if ``values`` look like the SI unit of ``column``, else a
+    sentence saying what unit they look like. Uses the median of the finite
+    values, so a few outliers do not decide."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return None
+    med = float(np.median(v))
+    rng = _range_text(v)
+    if column == "height_m":
+        lo, hi = HEIGHT_RANGE_M
+        if lo <= med <= hi:
+            return None
+        if 2.0 < med <= 80.0:
+            return (f"values {rng} look like inches, not metres "
+                    f"(expected {lo}..{hi} m; multiply inches by 0.0254)")
+        if 50.0 < med <= 2000.0:
+            return (f"values {rng} look like millimetres, not metres "
+                    f"(expected {lo}..{hi} m; divide mm by 1000)")
+        if 5.0 <= med * 100 <= 200.0:
+            return f"values {rng} look like centimetres or decimetres, not metres"
+        return f"values {rng} are not plausible heights in metres (expected {lo}..{hi} m)"
+    if column in PRESSURES:
+        lo, hi = PRESSURE_RANGE_PA
+        vmin = float(np.min(v))
+        if lo <= med <= hi and vmin >= lo:
+            return None
+        if med < 350.0:
+            if vmin < 14.0:
+                return (f"values {rng} look like gauge psi (psig), not absolute Pa "
+                        f"(Pa = (psig + 14.7) * 6894.76)")
+            return (f"values {rng} look like absolute psi (psia), not Pa "
+                    f"(Pa = psia * 6894.76)")
+        if med < 5000.0:
+            if vmin < 90.0:
+                return (f"values {rng} look like gauge kPa, not absolute Pa "
+                        f"(Pa = kPa * 1000 + 101325)")
+            return f"values {rng} look like absolute kPa, not Pa (Pa = kPa * 1000)"
+        if med <= hi:
+            return (f"values {rng} look like gauge Pa (below {lo:.0f} Pa absolute); "
+                    f"the log holds absolute pressures (add ambient, about 101325 Pa)")
+        return f"values {rng} are too large for pressures in Pa (expected {lo:.0f}..{hi:.0f})"
+    if column == "load_n":
+        lo, hi = LOAD_RANGE_N
+        if lo <= med <= hi and float(np.min(v)) >= lo:
+            return None
+        return f"values {rng} are not plausible loads in N (expected {lo:.0f}..{hi:.0f})"
+    return None
+
+
+# --- reading -------------------------------------------------------------------
+
+def _parse_number(text, path, line, column):
+    try:
+        value = float(text)
+    except ValueError:
+        raise RunLogError(path, line, f"column {column}: '{text}' is not a number") from None
+    if not math.isfinite(value):
+        raise RunLogError(path, line, f"column {column}: '{text}' is not a finite number "
+                                      f"(leave the cell empty if not measured)")
+    return value
+
+
+def read(path, check_unit=True):
+    """Reads a run log. Raises RunLogError (file:line: message) if malformed,
+    including when a column's values look like the wrong unit."""
+    path = os.fspath(path)
+    try:
+        with open(path, "r", encoding="utf-8", newline="") as f:
+            text = f.read()
+    except OSError as e:
+        raise RunLogError(path, None, f"cannot read: {e.strerror}") from None
+    except UnicodeDecodeError as e:
+        raise RunLogError(path, None, f"not UTF-8 text ({e.reason})") from None
+    return parse(text, path=path, check_unit=check_unit)
+
+
+def parse(text, path="<string>", check_unit=True):
+    """Parses run-log text; ``path`` is only used in error messages."""
+    lines = text.splitlines()
+    meta: Dict[str, str] = {}
+    version = None
+    lineno = 0
+    # Comment block: title line with the format version, then "# key: value".
+    while lineno < len(lines) and lines[lineno].startswith("#"):
+        raw = lines[lineno]
+        lineno += 1
+        m = _TITLE.match(raw)
+        if m:
+            try:
+                version = int(m.group(1))
+            except ValueError:
+                raise RunLogError(path, lineno, f"format version '{m.group(1)}' is not a number") from None
+            if version not in SUPPORTED_VERSIONS:
+                raise RunLogError(path, lineno, f"unknown format version {version} "
+                                                f"(this reader knows {', '.join(map(str, SUPPORTED_VERSIONS))})")
+            continue
+        m = _KEY_VALUE.match(raw)
+        if m:
+            key, value = m.group(1).lower(), m.group(2)
+            if key == "format":
+                try:
+                    version = int(value)
+                except ValueError:
+                    raise RunLogError(path, lineno, f"format version '{value}' is not a number") from None
+                if version not in SUPPORTED_VERSIONS:
+                    raise RunLogError(path, lineno, f"unknown format version {version} "
+                                                    f"(this reader knows {', '.join(map(str, SUPPORTED_VERSIONS))})")
+            else:
+                meta[key] = value
+        # any other comment line is free text
+    if version is None:
+        raise RunLogError(path, 1, "no format line ('# leveler run log, format 1') "
+                                   "in the comment block at the top")
+    if lineno >= len(lines):
+        raise RunLogError(path, lineno + 1, "missing header line " + ",".join(COLUMNS))
+    header_line = lineno + 1
+    header = [h.strip() for h in lines[lineno].split(",")]
+    lineno += 1
+    missing = [c for c in COLUMNS if c not in header]
+    extra = [c for c in header if c not in COLUMNS]
+    if missing or extra:
+        parts = []
+        if missing:
+            parts.append("missing column(s) " + ", ".join(missing))
+        if extra:
+            parts.append("unknown column(s) " + ", ".join(repr(c) for c in extra))
+        raise RunLogError(path, header_line, "header: " + "; ".join(parts)
+                          + "; expected " + ",".join(COLUMNS))
+    if len(set(header)) != len(header):
+        raise RunLogError(path, header_line, "header: a column appears twice")
+    if header != list(COLUMNS):
+        raise RunLogError(path, header_line, "header: columns out of order; expected "
+                          + ",".join(COLUMNS))
+
+    source = meta.get("source", "")
+    if source and source not in SOURCES:
+        raise RunLogError(path, None, f"source '{source}' is neither 'sim' nor 'rig'")
+
+    ncol = len(COLUMNS)
+    data = np.full((max(len(lines) - lineno, 0), ncol), np.nan)
+    row_lines = np.zeros(len(data), dtype=np.int64)
+    nrows = 0
+    reader = csv.reader(lines[lineno:])
+    for offset, cells in enumerate(reader):
+        line = lineno + offset + 1
+        if not cells or (len(cells) == 1 and cells[0].strip() == ""):
+            continue            # blank line (e.g. trailing)
+        if cells[0].startswith("#"):
+            raise RunLogError(path, line, "comment line after the header")
+        if len(cells) != ncol:
+            raise RunLogError(path, line, f"{len(cells)} cells, expected {ncol} ("
+                              + ("missing cells" if len(cells) < ncol else "extra cells") + ")")
+        row = data[nrows]
+        for j, (name, cell) in enumerate(zip(COLUMNS, cells)):
+            cell = cell.strip()
+            if cell == "":
+                if name in REQUIRED:
+                    raise RunLogError(path, line, f"column {name}: empty cell (required)")
+                continue
+            value = _parse_number(cell, path, line, name)
+            if name in ACTUATORS and value not in (0.0, 1.0):
+                raise RunLogError(path, line, f"column {name}: actuator state '{cell}' is not 0 or 1")
+            row[j] = value
+        if nrows > 0 and not row[0] > data[nrows - 1, 0]:
+            raise RunLogError(path, line, f"column t_s: time {cells[0].strip()} does not increase "
+                              f"(previous row {data[nrows - 1, 0]:.9g})")
+        row_lines[nrows] = line
+        nrows += 1
+    if nrows == 0:
+        raise RunLogError(path, header_line + 1, "no data rows after the header")
+    data = data[:nrows]
+
+    if check_unit:
+        for j, name in enumerate(COLUMNS):
+            if name in ("height_m", "load_n") or name in PRESSURES:
+                problem = check_units(name, data[:, j])
+                if problem:
+                    finite = np.flatnonzero(np.isfinite(data[:, j]))
+                    raise RunLogError(path, int(row_lines[finite[0]]), f"column {name}: {problem}")
+
+    cols = {name: data[:, j].copy() for j, name in enumerate(COLUMNS)}
+    return RunLog(**cols, format_version=version, config=meta.pop("config", ""),
+                  source=meta.pop("source", "") or "sim", meta=meta, path=path)
+
+
+# --- writing -------------------------------------------------------------------
+
+def _fmt(value):
+    return "" if not math.isfinite(value) else repr(float(value))
+
+
+def _fmt_flag(value):
+    return "" if not math.isfinite(value) else ("1" if value else "0")
+
+
+def format_text(log: RunLog):
+    """The run log as text (the exact file ``write`` produces)."""
+    out = io.StringIO()
+    out.write(f"# leveler run log, format {FORMAT_VERSION}\n")
+    out.write(f"# config: {log.config}\n")
+    out.write(f"# source: {log.source}\n")
+    for key, value in log.meta.items():
+        if key in ("config", "source", "format"):
+            continue
+        out.write(f"# {key}: {value}\n")
+    out.write(",".join(COLUMNS) + "\n")
+    cols = [log.column(c) for c in COLUMNS]
+    n = len(log.t_s)
+    for c, name in zip(cols, COLUMNS):
+        if len(c) != n:
+            raise ValueError(f"column {name} has {len(c)} entries, t_s has {n}")
+    for i in range(n):
+        cells = []
+        for name, c in zip(COLUMNS, cols):
+            cells.append(_fmt_flag(c[i]) if name in ACTUATORS else _fmt(c[i]))
+        out.write(",".join(cells) + "\n")
+    return out.getvalue()
+
+
+def write_text_atomic(path, text, mode="w"):
+    """Writes ``text`` to ``path`` via a temporary file in the same folder and a
+    rename, so a reader never sees half a file. ``mode`` "wb" for bytes."""
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=folder)
+    try:
+        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8", "newline": ""})) as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def write(path, log: RunLog):
+    """Writes ``log`` to ``path`` atomically."""
+    write_text_atomic(path, format_text(log))
