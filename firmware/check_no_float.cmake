@@ -1,0 +1,11 @@
+# Fails when the library (LIB) references a soft-float helper (__aeabi_f*, __aeabi_d*).
+execute_process(COMMAND ${NM} --undefined-only ${LIB} OUTPUT_VARIABLE syms RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "check_no_float: ${NM} failed on ${LIB}")
+endif()
+string(REGEX MATCHALL "__aeabi_[fd][A-Za-z0-9_]*" hits "${syms}")
+if(hits)
+  list(REMOVE_DUPLICATES hits)
+  message(FATAL_ERROR "check_no_float: ${LIB} uses floating point: ${hits}")
+endif()
+message(STATUS "check_no_float: no floating-point helpers in ${LIB}")

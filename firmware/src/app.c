@@ -1,0 +1,167 @@
+#include "leveler/app.h"
+
+#include <string.h>
+
+#include "internal.h"
+#include "leveler/control.h"
+#include "leveler/hal.h"
+#include "leveler/sensors.h"
+#include "leveler/settings.h"
+#include "leveler/status.h"
+#include "leveler/supervisor.h"
+
+static leveler_sensors g_sensors;
+static leveler_supervisor g_supervisor;
+static leveler_status g_status;
+static leveler_command g_command;
+static uint32_t g_start_ms;
+static uint32_t g_last_tick_ms;
+static bool g_ticked;
+
+const leveler_status *leveler_app_status(void)
+{
+    return &g_status;
+}
+
+const leveler_command *leveler_app_command(void)
+{
+    return &g_command;
+}
+
+leveler_command *leveler_app_command_mut(void)
+{
+    return &g_command;
+}
+
+void leveler_app_clear_faults(void)
+{
+    leveler_supervisor_clear(&g_supervisor);
+    g_status.latched_fault_bits = g_supervisor.latched_bits;
+    g_status.fault_latched = false;
+}
+
+void leveler_app_note_refusal(uint16_t reason)
+{
+    g_status.last_refusal_reason = reason;
+}
+
+static void drive(const leveler_outputs *o, bool led)
+{
+    hal_output_set(HAL_OUT_COMPRESSOR, o->compressor);
+    hal_output_set(HAL_OUT_SPRING_VALVE, o->spring_valve);
+    hal_output_set(HAL_OUT_VENT_VALVE, o->vent_valve);
+    hal_output_set(HAL_OUT_ACC_VALVE, o->acc_valve);
+    hal_output_set(HAL_OUT_STATUS_LED, led);
+}
+
+/* LED: steady on when running normally, 1 Hz blink while waiting for valid
+ * sensors or in mode off, 4 Hz blink while a fault is latched. */
+static bool led_pattern(uint32_t uptime_ms)
+{
+    if (g_status.fault_latched) {
+        return ((uptime_ms / 125u) & 1u) == 0u;
+    }
+    if (g_status.outputs_safe) {
+        return ((uptime_ms / 500u) & 1u) == 0u;
+    }
+    return true;
+}
+
+void leveler_app_init(void)
+{
+    static const leveler_outputs safe = {false, false, false, false};
+    drive(&safe, false); /* first thing: safe outputs */
+    leveler_settings_reset();
+    g_start_ms = hal_now_ms();
+    g_last_tick_ms = g_start_ms;
+    g_ticked = false;
+    leveler_sensors_init(&g_sensors, g_start_ms);
+    leveler_supervisor_init(&g_supervisor);
+    memset(&g_command, 0, sizeof(g_command));
+    bool clock_fault = g_status.clock_fault; /* a hardware fact the board may report before init */
+    memset(&g_status, 0, sizeof(g_status));
+    g_status.clock_fault = clock_fault;
+    g_status.firmware_version = LEVELER_FIRMWARE_VERSION;
+    g_status.control_state = LEVELER_STATE_SAFE;
+    g_status.outputs_safe = true;
+}
+
+void leveler_app_tick(void)
+{
+    const leveler_settings *set = leveler_settings_current();
+    uint32_t now_ms = hal_now_ms();
+    uint32_t dt_ms = g_ticked ? now_ms - g_last_tick_ms : 0u;
+    g_last_tick_ms = now_ms;
+    g_ticked = true;
+
+    /* 1. sample */
+    leveler_sensors_sample(&g_sensors, set, now_ms);
+    leveler_measurements m = {
+        .height_um = g_sensors.ch[HAL_ADC_HEIGHT].value,
+        .p_spring_pa = g_sensors.ch[HAL_ADC_P_SPRING].value,
+        .p_pipe_pa = g_sensors.ch[HAL_ADC_P_PIPE].value,
+        .p_acc_pa = g_sensors.ch[HAL_ADC_P_ACC].value,
+        .sensors_valid = leveler_sensors_all_valid(&g_sensors),
+        .sensor_fault_bits = leveler_sensors_fault_bits(&g_sensors),
+    };
+
+    /* 2. control (auto) or manual request, then the supervisor's word */
+    leveler_outputs request;
+    leveler_control_state band = leveler_control_decide(set->algorithm, set->band_lower_um, set->band_upper_um,
+                                                        set->acc_charge_max_pa, m.height_um, m.p_pipe_pa,
+                                                        m.p_acc_pa, &request);
+    if (set->mode == (uint16_t)LEVELER_MODE_MANUAL) {
+        request.compressor = g_command.manual_compressor;
+        request.spring_valve = g_command.manual_spring_valve;
+        request.vent_valve = g_command.manual_vent_valve;
+        request.acc_valve = g_command.manual_acc_valve;
+    }
+    leveler_outputs out;
+    leveler_supervisor_step(&g_supervisor, set, set->mode, &m, &request, now_ms, dt_ms, &out);
+
+    /* 3. publish, then actuate every output */
+    g_status.height_um = m.height_um;
+    g_status.p_spring_pa = m.p_spring_pa;
+    g_status.p_pipe_pa = m.p_pipe_pa;
+    g_status.p_acc_pa = m.p_acc_pa;
+    g_status.sensor_fault_bits = m.sensor_fault_bits;
+    g_status.sensors_valid = m.sensors_valid;
+    for (unsigned c = 0; c < HAL_ADC_COUNT; c++) {
+        g_status.raw_counts[c] = g_sensors.ch[c].raw_counts;
+    }
+    g_status.outputs_safe = g_supervisor.outputs_safe;
+    g_status.control_state = (uint16_t)(g_supervisor.outputs_safe ? LEVELER_STATE_SAFE : band);
+    g_status.active_fault_bits = g_supervisor.active_bits;
+    g_status.latched_fault_bits = g_supervisor.latched_bits;
+    g_status.fault_latched = g_supervisor.latched_bits != 0u;
+    g_status.last_fault_code = g_supervisor.last_fault_code;
+    memcpy(g_status.fault_count, g_supervisor.fault_count, sizeof(g_status.fault_count));
+    g_status.compressor_run_ms = g_supervisor.compressor_run_ms;
+    g_status.cooldown_left_ms = g_supervisor.cooldown_left_ms;
+    g_status.uptime_ms = now_ms - g_start_ms;
+    g_status.compressor_on = out.compressor;
+    g_status.spring_valve_open = out.spring_valve;
+    g_status.vent_valve_open = out.vent_valve;
+    g_status.acc_valve_open = out.acc_valve;
+
+    drive(&out, led_pattern(g_status.uptime_ms));
+}
+
+void leveler_app_report_tick_overrun(void)
+{
+    if (g_status.tick_overruns != UINT32_MAX) {
+        g_status.tick_overruns++;
+    }
+}
+
+void leveler_app_report_tick_cycles(uint32_t cycles)
+{
+    if (cycles > g_status.tick_cycles_worst) {
+        g_status.tick_cycles_worst = cycles;
+    }
+}
+
+void leveler_app_report_clock_fault(bool hse_failed)
+{
+    g_status.clock_fault = hse_failed;
+}
