@@ -1,0 +1,396 @@
+/* INI configuration of leveler-rig (libinih). */
+#define _POSIX_C_SOURCE 200809L
+#include "rig_config.h"
+
+#include <errno.h>
+#include <stdarg.h>
+#include <ini.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+const char *const rig_channel_names[HAL_ADC_COUNT] = {"height", "p_spring", "p_pipe", "p_acc"};
+const char *const rig_output_names[HAL_OUT_COUNT] = {"compressor", "spring_valve", "vent_valve", "acc_valve",
+                                                     "status_led"};
+
+void rig_config_defaults(rig_config *cfg)
+{
+    memset(cfg, 0, sizeof *cfg);
+    snprintf(cfg->name, sizeof cfg->name, "rig");
+    cfg->clock = RIG_CLOCK_MONOTONIC;
+    cfg->lockstep_time_register = 16;
+    cfg->lockstep_step_register = 0;
+    cfg->transport = RIG_TRANSPORT_RTU;
+    snprintf(cfg->device, sizeof cfg->device, "/dev/ttyUSB0");
+    cfg->baud = 19200;
+    cfg->parity = 'N';
+    cfg->data_bits = 8;
+    cfg->stop_bits = 1;
+    snprintf(cfg->host, sizeof cfg->host, "127.0.0.1");
+    cfg->port = 502;
+    cfg->slave = 1;
+    cfg->timeout_ms = 5;
+    for (int c = 0; c < HAL_ADC_COUNT; c++) {
+        rig_channel *ch = &cfg->channel[c];
+        ch->enabled = c != HAL_ADC_P_ACC; /* the accumulator is optional */
+        ch->table = RIG_TABLE_INPUT;
+        ch->address = (uint16_t)c;
+        ch->raw_lo = 0;
+        ch->raw_hi = HAL_ADC_MAX_COUNTS;
+        ch->out_lo = 0;
+        ch->out_hi = HAL_ADC_MAX_COUNTS;
+    }
+    cfg->load.enabled = false;
+    cfg->load.table = RIG_TABLE_INPUT;
+    cfg->load.address = 4;
+    cfg->load.raw_lo = 0;
+    cfg->load.raw_hi = 1;
+    cfg->load.out_lo = 0;
+    cfg->load.out_hi = 1;
+    cfg->outputs = RIG_OUTPUTS_GPIOD;
+    snprintf(cfg->consumer, sizeof cfg->consumer, "leveler-rig");
+    for (int o = 0; o < HAL_OUT_COUNT; o++) {
+        snprintf(cfg->pin[o].chip, sizeof cfg->pin[o].chip, "gpiochip0");
+        cfg->pin[o].coil = (uint16_t)o;
+    }
+    cfg->supervision_enabled = true;
+    snprintf(cfg->supervision_address, sizeof cfg->supervision_address, "127.0.0.1");
+    cfg->supervision_port = 1502;
+    cfg->read_only = false;
+    cfg->idle_timeout_ms = 60000;
+    cfg->max_clients = 4;
+    cfg->log_rotate_bytes = 0;
+    cfg->log_keep_files = 5;
+    cfg->log_load_n = NAN;
+}
+
+typedef struct {
+    FILE *file;
+    unsigned line;         /* line the handler is looking at */
+    const char *path;
+    rig_config *cfg;
+    char *err;
+    size_t err_len;
+    int failed;
+    bool seen_channel[HAL_ADC_COUNT];
+} parse_state;
+
+/* inih reads one line per call; counting here gives the handler its line number. */
+static char *counting_reader(char *str, int num, void *stream)
+{
+    parse_state *st = stream;
+    char *r = fgets(str, num, st->file);
+    if (r != NULL)
+        st->line++;
+    return r;
+}
+
+__attribute__((format(printf, 4, 5)))
+static int fail(parse_state *st, const char *section, const char *key, const char *fmt, ...)
+{
+    if (st->failed)
+        return 0;
+    st->failed = 1;
+    int n = snprintf(st->err, st->err_len, "%s:%u: [%s] %s: ", st->path, st->line, section, key);
+    if (n >= 0 && (size_t)n < st->err_len) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(st->err + n, st->err_len - (size_t)n, fmt, ap);
+        va_end(ap);
+    }
+    return 0;
+}
+
+static int parse_int(parse_state *st, const char *section, const char *key, const char *value,
+                     long long lo, long long hi, long long *out)
+{
+    char *end;
+    errno = 0;
+    long long v = strtoll(value, &end, 0);
+    if (end == value || *end != '\0' || errno == ERANGE)
+        return fail(st, section, key, "'%s' is not an integer (allowed %lld..%lld)", value, lo, hi);
+    if (v < lo || v > hi)
+        return fail(st, section, key, "%lld is out of range (allowed %lld..%lld)", v, lo, hi);
+    *out = v;
+    return 1;
+}
+
+static int parse_double(parse_state *st, const char *section, const char *key, const char *value,
+                        double lo, double hi, double *out)
+{
+    char *end;
+    double v = strtod(value, &end);
+    if (end == value || *end != '\0' || !isfinite(v))
+        return fail(st, section, key, "'%s' is not a number (allowed %g..%g)", value, lo, hi);
+    if (v < lo || v > hi)
+        return fail(st, section, key, "%g is out of range (allowed %g..%g)", v, lo, hi);
+    *out = v;
+    return 1;
+}
+
+static int parse_bool(parse_state *st, const char *section, const char *key, const char *value, bool *out)
+{
+    if (!strcasecmp(value, "true") || !strcasecmp(value, "yes") || !strcmp(value, "1") || !strcasecmp(value, "on"))
+        *out = true;
+    else if (!strcasecmp(value, "false") || !strcasecmp(value, "no") || !strcmp(value, "0") || !strcasecmp(value, "off"))
+        *out = false;
+    else
+        return fail(st, section, key, "'%s' is not a boolean (allowed true/false)", value);
+    return 1;
+}
+
+static int parse_text(parse_state *st, const char *section, const char *key, const char *value,
+                      char *out, size_t cap)
+{
+    if (strlen(value) >= cap)
+        return fail(st, section, key, "longer than %zu characters", cap - 1);
+    memcpy(out, value, strlen(value) + 1);
+    return 1;
+}
+
+#define INT_FIELD(field, lo, hi)                                                    \
+    do {                                                                            \
+        long long v_;                                                               \
+        if (!parse_int(st, section, key, value, (lo), (hi), &v_))                   \
+            return 0;                                                               \
+        (field) = v_;                                                               \
+        return 1;                                                                   \
+    } while (0)
+
+static int channel_key(parse_state *st, rig_channel *ch, const char *section, const char *key,
+                       const char *value, double out_lo, double out_hi)
+{
+    if (!strcmp(key, "enabled"))
+        return parse_bool(st, section, key, value, &ch->enabled);
+    if (!strcmp(key, "table")) {
+        if (!strcmp(value, "input"))
+            ch->table = RIG_TABLE_INPUT;
+        else if (!strcmp(value, "holding"))
+            ch->table = RIG_TABLE_HOLDING;
+        else
+            return fail(st, section, key, "'%s' is not one of input, holding", value);
+        return 1;
+    }
+    if (!strcmp(key, "register"))
+        INT_FIELD(ch->address, 0, 65535);
+    if (!strcmp(key, "signed"))
+        return parse_bool(st, section, key, value, &ch->is_signed);
+    if (!strcmp(key, "raw_lo"))
+        return parse_double(st, section, key, value, -32768, 65535, &ch->raw_lo);
+    if (!strcmp(key, "raw_hi"))
+        return parse_double(st, section, key, value, -32768, 65535, &ch->raw_hi);
+    const char *lo_key = out_hi > HAL_ADC_MAX_COUNTS ? "load_n_lo" : "counts_lo";
+    const char *hi_key = out_hi > HAL_ADC_MAX_COUNTS ? "load_n_hi" : "counts_hi";
+    if (!strcmp(key, lo_key))
+        return parse_double(st, section, key, value, out_lo, out_hi, &ch->out_lo);
+    if (!strcmp(key, hi_key))
+        return parse_double(st, section, key, value, out_lo, out_hi, &ch->out_hi);
+    return fail(st, section, key, "unknown key");
+}
+
+static int handler(void *user, const char *section, const char *key, const char *value)
+{
+    parse_state *st = user;
+    rig_config *cfg = st->cfg;
+    if (st->failed)
+        return 0;
+
+    if (!strcmp(section, "rig")) {
+        if (!strcmp(key, "name"))
+            return parse_text(st, section, key, value, cfg->name, sizeof cfg->name);
+        if (!strcmp(key, "clock")) {
+            if (!strcmp(value, "monotonic"))
+                cfg->clock = RIG_CLOCK_MONOTONIC;
+            else if (!strcmp(value, "lockstep"))
+                cfg->clock = RIG_CLOCK_LOCKSTEP;
+            else
+                return fail(st, section, key, "'%s' is not one of monotonic, lockstep", value);
+            return 1;
+        }
+        if (!strcmp(key, "run_seconds"))
+            return parse_double(st, section, key, value, 0, 1e9, &cfg->run_seconds);
+        if (!strcmp(key, "lockstep_time_register"))
+            INT_FIELD(cfg->lockstep_time_register, 0, 65534);
+        if (!strcmp(key, "lockstep_step_register"))
+            INT_FIELD(cfg->lockstep_step_register, 0, 65535);
+        return fail(st, section, key, "unknown key");
+    }
+    if (!strcmp(section, "sensors")) {
+        if (!strcmp(key, "transport")) {
+            if (!strcmp(value, "rtu"))
+                cfg->transport = RIG_TRANSPORT_RTU;
+            else if (!strcmp(value, "tcp"))
+                cfg->transport = RIG_TRANSPORT_TCP;
+            else
+                return fail(st, section, key, "'%s' is not one of rtu, tcp", value);
+            return 1;
+        }
+        if (!strcmp(key, "device"))
+            return parse_text(st, section, key, value, cfg->device, sizeof cfg->device);
+        if (!strcmp(key, "baud"))
+            INT_FIELD(cfg->baud, 300, 4000000);
+        if (!strcmp(key, "parity")) {
+            if (strlen(value) != 1 || !strchr("NEO", value[0]))
+                return fail(st, section, key, "'%s' is not one of N, E, O", value);
+            cfg->parity = value[0];
+            return 1;
+        }
+        if (!strcmp(key, "data_bits"))
+            INT_FIELD(cfg->data_bits, 5, 8);
+        if (!strcmp(key, "stop_bits"))
+            INT_FIELD(cfg->stop_bits, 1, 2);
+        if (!strcmp(key, "host"))
+            return parse_text(st, section, key, value, cfg->host, sizeof cfg->host);
+        if (!strcmp(key, "port"))
+            INT_FIELD(cfg->port, 1, 65535);
+        if (!strcmp(key, "slave"))
+            INT_FIELD(cfg->slave, 0, 247);
+        if (!strcmp(key, "timeout_ms"))
+            INT_FIELD(cfg->timeout_ms, 1, 10000);
+        return fail(st, section, key, "unknown key");
+    }
+    if (!strncmp(section, "sensor.", 7)) {
+        const char *which = section + 7;
+        for (int c = 0; c < HAL_ADC_COUNT; c++) {
+            if (!strcmp(which, rig_channel_names[c])) {
+                if (!st->seen_channel[c]) {
+                    /* A channel section present in the file is on unless it says otherwise. */
+                    st->seen_channel[c] = true;
+                    cfg->channel[c].enabled = true;
+                }
+                return channel_key(st, &cfg->channel[c], section, key, value, 0, HAL_ADC_MAX_COUNTS);
+            }
+        }
+        if (!strcmp(which, "load")) {
+            cfg->load.enabled = true;
+            return channel_key(st, &cfg->load, section, key, value, -1e6, 1e6);
+        }
+        return fail(st, section, key, "unknown sensor (allowed height, p_spring, p_pipe, p_acc, load)");
+    }
+    if (!strcmp(section, "outputs")) {
+        if (!strcmp(key, "backend")) {
+            if (!strcmp(value, "gpiod"))
+                cfg->outputs = RIG_OUTPUTS_GPIOD;
+            else if (!strcmp(value, "modbus"))
+                cfg->outputs = RIG_OUTPUTS_MODBUS;
+            else
+                return fail(st, section, key, "'%s' is not one of gpiod, modbus", value);
+            return 1;
+        }
+        if (!strcmp(key, "consumer"))
+            return parse_text(st, section, key, value, cfg->consumer, sizeof cfg->consumer);
+        return fail(st, section, key, "unknown key");
+    }
+    if (!strncmp(section, "output.", 7)) {
+        const char *which = section + 7;
+        for (int o = 0; o < HAL_OUT_COUNT; o++) {
+            if (strcmp(which, rig_output_names[o]))
+                continue;
+            rig_output_pin *pin = &cfg->pin[o];
+            pin->configured = true;
+            if (!strcmp(key, "chip"))
+                return parse_text(st, section, key, value, pin->chip, sizeof pin->chip);
+            if (!strcmp(key, "line"))
+                INT_FIELD(pin->line, 0, 65535);
+            if (!strcmp(key, "active_low"))
+                return parse_bool(st, section, key, value, &pin->active_low);
+            if (!strcmp(key, "coil"))
+                INT_FIELD(pin->coil, 0, 65535);
+            return fail(st, section, key, "unknown key");
+        }
+        return fail(st, section, key,
+                    "unknown output (allowed compressor, spring_valve, vent_valve, acc_valve, status_led)");
+    }
+    if (!strcmp(section, "supervision")) {
+        if (!strcmp(key, "enabled"))
+            return parse_bool(st, section, key, value, &cfg->supervision_enabled);
+        if (!strcmp(key, "address"))
+            return parse_text(st, section, key, value, cfg->supervision_address, sizeof cfg->supervision_address);
+        if (!strcmp(key, "port"))
+            INT_FIELD(cfg->supervision_port, 0, 65535);
+        if (!strcmp(key, "port_file"))
+            return parse_text(st, section, key, value, cfg->supervision_port_file, sizeof cfg->supervision_port_file);
+        if (!strcmp(key, "read_only"))
+            return parse_bool(st, section, key, value, &cfg->read_only);
+        if (!strcmp(key, "idle_timeout_s")) {
+            long long v;
+            if (!parse_int(st, section, key, value, 1, 86400, &v))
+                return 0;
+            cfg->idle_timeout_ms = (uint32_t)(v * 1000);
+            return 1;
+        }
+        if (!strcmp(key, "idle_timeout_ms"))
+            INT_FIELD(cfg->idle_timeout_ms, 10, 86400000);
+        if (!strcmp(key, "max_clients"))
+            INT_FIELD(cfg->max_clients, 1, 64);
+        return fail(st, section, key, "unknown key");
+    }
+    if (!strcmp(section, "log")) {
+        if (!strcmp(key, "path"))
+            return parse_text(st, section, key, value, cfg->log_path, sizeof cfg->log_path);
+        if (!strcmp(key, "rotate_bytes"))
+            INT_FIELD(cfg->log_rotate_bytes, 0, 1LL << 40);
+        if (!strcmp(key, "keep_files"))
+            INT_FIELD(cfg->log_keep_files, 0, 1000);
+        if (!strcmp(key, "load_n"))
+            return parse_double(st, section, key, value, 0, 1e6, &cfg->log_load_n);
+        return fail(st, section, key, "unknown key");
+    }
+    return fail(st, section, key, "unknown section");
+}
+
+int rig_config_load(const char *path, rig_config *cfg, char *err, size_t err_len)
+{
+    parse_state st = {.path = path, .cfg = cfg, .err = err, .err_len = err_len};
+    st.file = fopen(path, "r");
+    if (st.file == NULL) {
+        snprintf(err, err_len, "%s: %s", path, strerror(errno));
+        return -1;
+    }
+    int rc = ini_parse_stream(counting_reader, &st, handler, &st);
+    fclose(st.file);
+    if (st.failed)
+        return -1;
+    if (rc != 0) {
+        snprintf(err, err_len, "%s:%d: syntax error (expected [section] or key = value)", path, rc);
+        return -1;
+    }
+    /* Consistency of the whole file; no single line to name. */
+    if (cfg->transport == RIG_TRANSPORT_TCP && cfg->host[0] == '\0') {
+        snprintf(err, err_len, "%s: [sensors] host: required with transport = tcp", path);
+        return -1;
+    }
+    if (cfg->transport == RIG_TRANSPORT_RTU && cfg->device[0] == '\0') {
+        snprintf(err, err_len, "%s: [sensors] device: required with transport = rtu", path);
+        return -1;
+    }
+    for (int c = 0; c < HAL_ADC_COUNT; c++) {
+        if (cfg->channel[c].enabled && cfg->channel[c].raw_lo == cfg->channel[c].raw_hi) {
+            snprintf(err, err_len, "%s: [sensor.%s] raw_lo, raw_hi: must differ", path, rig_channel_names[c]);
+            return -1;
+        }
+    }
+    if (cfg->load.enabled && cfg->load.raw_lo == cfg->load.raw_hi) {
+        snprintf(err, err_len, "%s: [sensor.load] raw_lo, raw_hi: must differ", path);
+        return -1;
+    }
+    for (int o = 0; o < HAL_OUT_STATUS_LED; o++) {
+        if (!cfg->pin[o].configured) {
+            snprintf(err, err_len, "%s: [output.%s]: missing (every valve and the compressor need one)", path,
+                     rig_output_names[o]);
+            return -1;
+        }
+    }
+    if (cfg->clock == RIG_CLOCK_LOCKSTEP && cfg->outputs == RIG_OUTPUTS_GPIOD) {
+        snprintf(err, err_len, "%s: [rig] clock: lockstep needs [outputs] backend = modbus (a served plant)", path);
+        return -1;
+    }
+    if (cfg->log_path[0] && !cfg->load.enabled && !isfinite(cfg->log_load_n)) {
+        snprintf(err, err_len, "%s: [log] load_n: required when there is no [sensor.load] (the log needs a load)",
+                 path);
+        return -1;
+    }
+    return 0;
+}

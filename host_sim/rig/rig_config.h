@@ -1,0 +1,90 @@
+/*
+ * leveler-rig configuration: one INI file (libinih), see boards/linux-rig/rig.ini
+ * for every key with its meaning. Parse errors name the file, the line, the
+ * [section] key and, for numbers, the allowed range.
+ */
+#ifndef LEVELER_RIG_CONFIG_H
+#define LEVELER_RIG_CONFIG_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "leveler/hal.h"
+
+#define RIG_TEXT_MAX 256
+
+typedef enum { RIG_CLOCK_MONOTONIC = 0, RIG_CLOCK_LOCKSTEP = 1 } rig_clock;
+typedef enum { RIG_TRANSPORT_RTU = 0, RIG_TRANSPORT_TCP = 1 } rig_transport;
+typedef enum { RIG_OUTPUTS_GPIOD = 0, RIG_OUTPUTS_MODBUS = 1 } rig_output_kind;
+typedef enum { RIG_TABLE_INPUT = 0, RIG_TABLE_HOLDING = 1 } rig_module_table;
+
+/* One analog channel of the input module: a register whose raw value maps
+ * linearly raw_lo..raw_hi -> out_lo..out_hi (ADC counts, or N for the load). */
+typedef struct {
+    bool enabled;
+    rig_module_table table;
+    uint16_t address;
+    bool is_signed;   /* raw register read as int16 */
+    double raw_lo, raw_hi;
+    double out_lo, out_hi;
+} rig_channel;
+
+typedef struct {
+    bool configured;
+    char chip[RIG_TEXT_MAX]; /* gpiod: name, number or /dev path */
+    uint32_t line;
+    bool active_low;
+    uint16_t coil;           /* modbus backend: coil address on the module */
+} rig_output_pin;
+
+typedef struct {
+    char name[RIG_TEXT_MAX]; /* config name written into the run log */
+    rig_clock clock;
+    double run_seconds;       /* 0 = until SIGINT/SIGTERM */
+    uint16_t lockstep_time_register;  /* input register pair: module clock, ms, high word first */
+    uint16_t lockstep_step_register;  /* holding register: writing N advances the module N ms */
+
+    rig_transport transport;
+    char device[RIG_TEXT_MAX];
+    uint32_t baud;
+    char parity;              /* 'N', 'E', 'O' */
+    uint8_t data_bits, stop_bits;
+    char host[RIG_TEXT_MAX];
+    uint16_t port;
+    uint8_t slave;
+    uint32_t timeout_ms;      /* per Modbus request to the module */
+
+    rig_channel channel[HAL_ADC_COUNT];
+    rig_channel load;         /* optional load cell, out_* in N */
+
+    rig_output_kind outputs;
+    char consumer[RIG_TEXT_MAX];
+    rig_output_pin pin[HAL_OUT_COUNT];
+
+    bool supervision_enabled;
+    char supervision_address[RIG_TEXT_MAX];
+    uint16_t supervision_port;        /* 0 = an ephemeral port chosen by the kernel */
+    char supervision_port_file[RIG_TEXT_MAX]; /* if set, the bound port is written here */
+    bool read_only;
+    uint32_t idle_timeout_ms;
+    uint32_t max_clients;
+
+    char log_path[RIG_TEXT_MAX];      /* empty = no run log */
+    uint64_t log_rotate_bytes;
+    uint32_t log_keep_files;
+    double log_load_n;                /* logged load when there is no load channel */
+} rig_config;
+
+/* Defaults: see boards/linux-rig/rig.ini. */
+void rig_config_defaults(rig_config *cfg);
+
+/* Parse path over the defaults, then check the whole. 0 on success; otherwise
+ * -1 with "file:line: [section] key: what is wrong" in err. */
+int rig_config_load(const char *path, rig_config *cfg, char *err, size_t err_len);
+
+/* Names used in the config for the HAL channels and outputs. */
+extern const char *const rig_channel_names[HAL_ADC_COUNT];
+extern const char *const rig_output_names[HAL_OUT_COUNT];
+
+#endif

@@ -1,0 +1,41 @@
+/*
+ * Supervision server of leveler-rig: Modbus TCP (libmodbus builds every reply)
+ * over the firmware's register map (leveler_regs_read / leveler_regs_write).
+ *
+ * - Several clients at once; sockets are non-blocking and a request is only
+ *   handled once its whole MBAP frame has arrived, so no client can hold up
+ *   the 10 ms tick. rig_supervision_serve() waits at most timeout_ms.
+ * - Writes go through the firmware's validation: a refused write is answered
+ *   with exception 03 (ILLEGAL DATA VALUE) and changes nothing.
+ * - read_only: every write function (05, 06, 15, 16) is answered with
+ *   exception 01 (ILLEGAL FUNCTION): the server does not offer writing.
+ * - Function codes other than 01-06, 15, 16: exception 01.
+ * - A client idle for idle_timeout_ms is dropped; so is one whose bytes are not
+ *   Modbus TCP (protocol id other than 0, length outside 2..254).
+ */
+#ifndef LEVELER_RIG_SUPERVISION_H
+#define LEVELER_RIG_SUPERVISION_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "rig_config.h"
+
+typedef struct rig_supervision rig_supervision;
+
+typedef struct {
+    uint32_t accepted;
+    uint32_t refused_full;   /* connections refused at max_clients */
+    uint32_t dropped_idle;
+    uint32_t dropped_garbage;
+    uint32_t requests;
+    uint32_t exceptions;
+} rig_supervision_stats;
+
+rig_supervision *rig_supervision_open(const rig_config *cfg, char *err, size_t err_len);
+uint16_t rig_supervision_port(const rig_supervision *sv);
+void rig_supervision_serve(rig_supervision *sv, int timeout_ms);
+rig_supervision_stats rig_supervision_get_stats(const rig_supervision *sv);
+void rig_supervision_close(rig_supervision *sv);
+
+#endif
