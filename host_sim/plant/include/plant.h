@@ -1,0 +1,233 @@
+/*
+ * Plant model of the thesis rig (Chapter III, eq. 1-32), double precision, SI
+ * inside: compressor + motor, pipe/junction volume P1, spring solenoid valve,
+ * vent valve, accumulator branch (tube or diaphragm) with its valve, air
+ * spring P2 and volume, platform with hysteresis force law and direction-
+ * dependent damping.
+ *
+ * No global state: everything lives in a plant value, so Python (ctypes), the
+ * rig's Modbus server and the simulator can run as many as they like.
+ * The right-hand side of the ODE is ONE function, plant_derivatives(); the
+ * place to add unmodelled effects (thermal lag, friction, valve/line delay,
+ * leak, sensor lag, nonlinear area) is marked "EXTENSION POINT" there, and
+ * extra states go after PLANT_X_VEL (bump PLANT_NX).
+ *
+ * Configuration files: docs/config-format.md.
+ */
+#ifndef LEVELER_PLANT_H
+#define LEVELER_PLANT_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#define PLANT_MAX_BANDS 8
+#define PLANT_MAX_POLY 6
+#define PLANT_NAME_MAX 64
+#define PLANT_PATH_MAX 512
+
+/* Unit conversions used by the loader, the tests and the reports. */
+#define PLANT_PA_PER_PSI 6894.757293168361
+#define PLANT_M_PER_IN 0.0254
+#define PLANT_N_PER_LBF 4.4482216152605
+#define PLANT_KG_PER_LBM 0.45359237
+#define PLANT_STANDARD_GRAVITY 9.80665
+
+typedef enum { PLANT_ACC_NONE = 0, PLANT_ACC_TUBE = 1, PLANT_ACC_DIAPHRAGM = 2 } plant_acc_type;
+
+/* One hysteresis band: applies while load < load_below_n (the band with the
+ * largest load_below_n also covers heavier loads). Lines are gauge pressure:
+ * UP = up_slope * y + up_intercept, DP = UP - down_offset. */
+typedef struct {
+    double load_below_n;
+    double up_slope_pa_per_m;
+    double up_intercept_pag;
+    double down_offset_pa;
+} plant_hysteresis_band;
+
+typedef struct {
+    /* ambient and gas */
+    double ambient_pa;
+    double temperature_k;
+    double gas_constant_j_per_kg_k;
+    double compressibility;  /* Z */
+    double polytropic_n;
+    double heat_ratio_k;
+    /* compressor motor (eq. 3, 15) */
+    double motor_torque_constant_nm_per_v;
+    double motor_supply_v;
+    double motor_inertia_kg_m2;
+    double motor_damping_nm_s;
+    double motor_torque_coefficient; /* 2.0: load torque = coef * Dc * (P1 - Pa) */
+    /* compressor (eq. 1, 2, 20) */
+    double compressor_capacity_m3_per_rad;
+    double compressor_leakage_m3_per_pa_s;
+    /* pipe / junction */
+    double pipe_volume_m3;
+    /* spring solenoid valve */
+    double spring_valve_diameter_m;
+    double spring_valve_cd_in;  /* pipe -> spring */
+    double spring_valve_cd_out; /* spring -> pipe */
+    /* vent valve */
+    double vent_valve_diameter_m;
+    double vent_valve_cd;
+    /* accumulator branch */
+    int acc_type; /* plant_acc_type */
+    double acc_volume_m3; /* tube */
+    double acc_charge_pa; /* absolute; initial P3 */
+    double acc_valve_diameter_m;
+    double acc_valve_cd;
+    /* air spring */
+    double spring_volume0_m3; /* at the initial height */
+    double area_cc1_in2[PLANT_MAX_POLY]; /* CC1 = sum c[i] (load_lbf/100)^i, in^2 */
+    int area_cc1_terms;
+    double area_cc2_in2_per_in[PLANT_MAX_POLY];
+    int area_cc2_terms;
+    /* hysteresis */
+    plant_hysteresis_band bands[PLANT_MAX_BANDS];
+    int band_count;
+    /* platform */
+    double extra_mass_kg;
+    double damping_up_n_s_per_m;
+    double damping_down_n_s_per_m;
+    double velocity_deadband_m_per_s;
+    double height_min_m;
+    double height_max_m;
+    /* initial state */
+    double init_height_m;
+    double init_velocity_m_per_s;
+    double init_p_pipe_pa;
+    double init_p_spring_pa;
+    double init_motor_speed_rad_per_s;
+} plant_params;
+
+/* Plant state -> ADC counts: two-point linear spans, 12-bit, optional noise. */
+typedef struct {
+    double height_lo_counts, height_hi_counts;
+    double height_lo_m, height_hi_m;
+    double pressure_lo_counts, pressure_hi_counts;
+    double pressure_lo_pa, pressure_hi_pa;
+    double noise_counts; /* standard deviation; 0 = none */
+    uint32_t noise_seed;
+} plant_sensor_params;
+
+/* Everything a configuration file holds. */
+typedef struct {
+    plant_params plant;
+    plant_sensor_params sensors;
+    int algorithm; /* 1 or 2 */
+    double band_lower_m;
+    double band_upper_m;
+    double base_load_n;
+    double step_load_n;
+    double step_on_s;
+    double step_off_s;
+    double end_s;
+    int substeps_per_tick;
+    char name[PLANT_NAME_MAX];
+    char path[PLANT_PATH_MAX];
+} plant_config;
+
+/* The thesis 900 lb case (parameter table, Appendix B program). */
+void plant_config_defaults(plant_config *out);
+
+/* Defaults, then the file (docs/config-format.md). 0 on success; else -1 and
+ * err = "file:line: [section] key = value: reason (allowed range ...)". */
+int plant_config_load(const char *path, plant_config *out, char *err, size_t err_len);
+
+/* Consistency checks of a whole config (also run by the loader). */
+int plant_config_check(const plant_config *cfg, char *err, size_t err_len);
+
+/* ---- model ---- */
+
+enum {
+    PLANT_X_OMEGA = 0, /* motor speed, rad/s */
+    PLANT_X_P1,        /* pipe / junction pressure, Pa abs */
+    PLANT_X_P2,        /* spring pressure, Pa abs */
+    PLANT_X_P3,        /* accumulator pressure, Pa abs */
+    PLANT_X_V2,        /* spring volume, m^3 */
+    PLANT_X_Y,         /* platform height, m */
+    PLANT_X_VEL,       /* platform velocity, m/s (up +) */
+    PLANT_NX
+};
+
+typedef struct {
+    bool compressor;
+    bool spring_valve;
+    bool vent_valve;
+    bool acc_valve;
+    double load_n;
+} plant_inputs;
+
+/* Mass flows of one derivative evaluation, kg/s (diagnostics, tests). */
+typedef struct {
+    double compressor;   /* into the pipe */
+    double spring_valve; /* pipe -> spring (+) */
+    double vent_valve;   /* pipe -> ambient (+) */
+    double acc_valve;    /* pipe -> accumulator (+) */
+} plant_flows;
+
+typedef struct {
+    plant_params p;
+    plant_inputs in;
+    double x[PLANT_NX];
+    double t_s;
+    double damping_n_s_per_m; /* the damping in force: kept while |v| < deadband */
+    /* cached from p and in.load_n (plant_set_inputs) */
+    double load_cached_n;
+    double mass_kg;
+    double area_cc1_m2;
+    double area_cc2_m2_per_m;
+    const plant_hysteresis_band *band;
+    /* constants derived from p (plant_init) */
+    double crit_ratio;        /* (2/(k+1))^(k/(k-1)) */
+    double inv_k;
+    double flow_subsonic;     /* sqrt(2k/((k-1) R T)), per (Cd A Pu) */
+    double flow_choked;       /* sqrt(k/(R T)) (2/(k+1))^((k+1)/(2(k-1))) */
+    double spring_valve_area_m2, vent_valve_area_m2, acc_valve_area_m2;
+    double rt;                /* R T */
+    double zn;                /* Z n */
+} plant;
+
+/* State = the params' initial state, inputs all off at the initial load of 0. */
+void plant_init(plant *pl, const plant_params *p);
+/* Valves, compressor and load for the next steps. A load change updates the
+ * moving mass, effective area and hysteresis band (the volume stays: it is
+ * integrated). */
+void plant_set_inputs(plant *pl, const plant_inputs *in);
+/* The ODE right-hand side at state x, with the inputs and damping in force.
+ * flows may be NULL. */
+void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PLANT_NX], plant_flows *flows);
+/* One classical RK4 step of dt_s (damping chosen from the velocity at its start). */
+void plant_step(plant *pl, double dt_s);
+/* substeps equal RK4 steps covering dt_s. */
+void plant_advance(plant *pl, double dt_s, int substeps);
+
+/* Effective area at height y for a load (m^2). */
+double plant_effective_area_m2(const plant_params *p, double load_n, double y_m);
+/* The band for a load, and its lines (gauge Pa) at height y. */
+const plant_hysteresis_band *plant_band_for_load(const plant_params *p, double load_n);
+double plant_up_limit_pag(const plant_hysteresis_band *b, double y_m);
+double plant_down_limit_pag(const plant_hysteresis_band *b, double y_m);
+/* Diaphragm accumulator volume and dV/dP at P3 (figure 22). */
+void plant_diaphragm_volume(double p3_pa, double *v_m3, double *dv_dp_m3_per_pa);
+/* Accumulator volume now (tube: fixed). */
+double plant_acc_volume_m3(const plant *pl);
+/* Orifice mass flow (eq. 8/9 with exponent 1/k), kg/s, from pu to pd (pu >= pd). */
+double plant_orifice_flow(const plant *pl, double cd_area_m2, double pu_pa, double pd_pa);
+
+/* ---- sensors ---- */
+
+/* Deterministic noise source (xorshift64*), one per simulation. */
+typedef struct {
+    uint64_t s;
+    bool have_spare;
+    double spare;
+} plant_rng;
+void plant_rng_seed(plant_rng *r, uint32_t seed);
+
+/* ADC counts for HAL channels 0 height, 1 P2, 2 P1, 3 P3 (clamped 0..4095).
+ * Without an accumulator P3 reads ambient. rng may be NULL when noise is 0. */
+void plant_sensor_counts(const plant *pl, const plant_sensor_params *sp, plant_rng *rng, uint16_t counts[4]);
+
+#endif /* LEVELER_PLANT_H */

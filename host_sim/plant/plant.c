@@ -1,0 +1,359 @@
+/*
+ * Plant model: the equations of Chapter III in SI (plant.h).
+ *
+ * Pressure equations (eq. 16, 17, 31/32) with beta = Z n P and weight flow
+ * taken as mass flow (g = gc):
+ *   dP1/dt = Z n R T (m_c - m_s - m_v - m_a) / V1
+ *   dP2/dt = Z n (R T m_s - P2 dV2/dt) / V2,       dV2/dt = A(y, load) v
+ *   dP3/dt = R T m_a / (V3/(Z n) + P3 dV3/dP3)      (tube: dV3/dP3 = 0)
+ * Motor (eq. 15, the program's alp): J dw/dt = Kt e - B w - c Dc (P1 - Pa).
+ * Compressor (eq. 20): m_c = P1 (Dc w - Cc (P1 - Pa)) / (R T) while the motor runs.
+ * Platform (eq. 27): m dv/dt = (P2 - Pa - Plimit) A - B v, with Plimit = UPlimit
+ * above the upper line, DPlimit below the lower one, and no pressure force in
+ * between (only damping).
+ */
+#include "plant.h"
+
+#include <math.h>
+#include <string.h>
+
+#define PLANT_PI 3.14159265358979323846
+
+static double poly(const double *c, int n, double x)
+{
+    double acc = 0.0;
+    for (int i = n - 1; i >= 0; i--)
+        acc = acc * x + c[i];
+    return acc;
+}
+
+static void area_coefficients(const plant_params *p, double load_n, double *cc1_m2, double *cc2_m2_per_m)
+{
+    /* Thesis polynomial: DL = load in lbf / 100, CC1 in in^2, CC2 in in^2/in. */
+    double dl = load_n / PLANT_N_PER_LBF / 100.0;
+    double cc1_in2 = poly(p->area_cc1_in2, p->area_cc1_terms, dl);
+    double cc2_in2_per_in = poly(p->area_cc2_in2_per_in, p->area_cc2_terms, dl);
+    *cc1_m2 = cc1_in2 * PLANT_M_PER_IN * PLANT_M_PER_IN;
+    *cc2_m2_per_m = cc2_in2_per_in * PLANT_M_PER_IN; /* in^2/in -> m^2/m */
+}
+
+double plant_effective_area_m2(const plant_params *p, double load_n, double y_m)
+{
+    double cc1, cc2;
+    area_coefficients(p, load_n, &cc1, &cc2);
+    return cc1 + cc2 * y_m;
+}
+
+const plant_hysteresis_band *plant_band_for_load(const plant_params *p, double load_n)
+{
+    /* Smallest load_below above the load; else the band with the largest load_below. */
+    const plant_hysteresis_band *best = NULL, *largest = NULL;
+    for (int i = 0; i < p->band_count; i++) {
+        const plant_hysteresis_band *b = &p->bands[i];
+        if (!largest || b->load_below_n > largest->load_below_n)
+            largest = b;
+        if (load_n < b->load_below_n && (!best || b->load_below_n < best->load_below_n))
+            best = b;
+    }
+    return best ? best : largest;
+}
+
+double plant_up_limit_pag(const plant_hysteresis_band *b, double y_m)
+{
+    return b->up_slope_pa_per_m * y_m + b->up_intercept_pag;
+}
+
+double plant_down_limit_pag(const plant_hysteresis_band *b, double y_m)
+{
+    return plant_up_limit_pag(b, y_m) - b->down_offset_pa;
+}
+
+void plant_diaphragm_volume(double p3_pa, double *v_m3, double *dv_dp_m3_per_pa)
+{
+    /* Figure 22 (Appendix B), P3 in psia, V in in^3; continuous at the breakpoints. */
+    static const double in3 = PLANT_M_PER_IN * PLANT_M_PER_IN * PLANT_M_PER_IN;
+    double p = p3_pa / PLANT_PA_PER_PSI;
+    double v, dv;
+    if (p < 40.0) {
+        v = 20.0;
+        dv = 0.0;
+    } else if (p < 106.7) {
+        v = 0.1546 * p + 13.8176;
+        dv = 0.1546;
+    } else if (p < 112.7) {
+        v = 75.531097 * p - 8028.85463;
+        dv = 75.531097;
+    } else {
+        v = 0.75 * p + 398.975;
+        dv = 0.75;
+    }
+    *v_m3 = v * in3;
+    *dv_dp_m3_per_pa = dv * in3 / PLANT_PA_PER_PSI;
+}
+
+double plant_acc_volume_m3(const plant *pl)
+{
+    if (pl->p.acc_type == PLANT_ACC_DIAPHRAGM) {
+        double v, dv;
+        plant_diaphragm_volume(pl->x[PLANT_X_P3], &v, &dv);
+        return v;
+    }
+    return pl->p.acc_volume_m3;
+}
+
+double plant_orifice_flow(const plant *pl, double cd_area_m2, double pu_pa, double pd_pa)
+{
+    /* Eq. (8)/(9). Eq. (8) has the exponent 1/k on the pressure ratio; the
+     * program of Appendix B uses (k-1)/k in its solenoid and vent branches.
+     * We follow eq. (8): with 1/k the flow is continuous at the critical ratio. */
+    if (pu_pa <= pd_pa)
+        return 0.0;
+    double r = pd_pa / pu_pa;
+    if (r <= pl->crit_ratio)
+        return cd_area_m2 * pl->flow_choked * pu_pa;
+    double r_inv_k = pow(r, pl->inv_k);   /* r^(1/k) */
+    double r_km1_k = r / r_inv_k;         /* r^((k-1)/k) */
+    return cd_area_m2 * pl->flow_subsonic * pu_pa * r_inv_k * sqrt(1.0 - r_km1_k);
+}
+
+void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PLANT_NX], plant_flows *flows)
+{
+    const plant_params *p = &pl->p;
+    const plant_inputs *in = &pl->in;
+    const double pa = p->ambient_pa;
+    double omega = x[PLANT_X_OMEGA], p1 = x[PLANT_X_P1], p2 = x[PLANT_X_P2], p3 = x[PLANT_X_P3];
+    double v2 = x[PLANT_X_V2], y = x[PLANT_X_Y], vel = x[PLANT_X_VEL];
+
+    /* Motor (the program's alp): the pressure torque acts only while turning forward. */
+    double torque = in->compressor ? p->motor_torque_constant_nm_per_v * p->motor_supply_v : 0.0;
+    double alpha;
+    if (omega > 1e-6)
+        torque -= p->motor_damping_nm_s * omega +
+                  p->motor_torque_coefficient * p->compressor_capacity_m3_per_rad * (p1 - pa);
+    else if (omega < -1e-6)
+        torque -= p->motor_damping_nm_s * omega;
+    alpha = torque / p->motor_inertia_kg_m2;
+
+    /* Compressor delivers only while the motor is switched on and turning. */
+    double m_c = 0.0;
+    if (in->compressor && omega > 1e-4) {
+        double q = p->compressor_capacity_m3_per_rad * omega;
+        if (p1 > pa)
+            q -= p->compressor_leakage_m3_per_pa_s * (p1 - pa);
+        m_c = p1 * q / pl->rt;
+    }
+
+    /* Spring solenoid valve: its own Cd for each direction. Closed valves cost nothing. */
+    double m_s = 0.0;
+    if (in->spring_valve) {
+        if (p1 > p2)
+            m_s = plant_orifice_flow(pl, p->spring_valve_cd_in * pl->spring_valve_area_m2, p1, p2);
+        else if (p2 > p1)
+            m_s = -plant_orifice_flow(pl, p->spring_valve_cd_out * pl->spring_valve_area_m2, p2, p1);
+    }
+    double m_v = 0.0;
+    if (in->vent_valve) {
+        double cda = p->vent_valve_cd * pl->vent_valve_area_m2;
+        m_v = p1 > pa ? plant_orifice_flow(pl, cda, p1, pa) : -plant_orifice_flow(pl, cda, pa, p1);
+    }
+    double m_a = 0.0;
+    if (in->acc_valve && p->acc_type != PLANT_ACC_NONE) {
+        double cda = p->acc_valve_cd * pl->acc_valve_area_m2;
+        m_a = p1 > p3 ? plant_orifice_flow(pl, cda, p1, p3) : -plant_orifice_flow(pl, cda, p3, p1);
+    }
+
+    /* Air spring geometry at this height and the current load. */
+    double area = pl->area_cc1_m2 + pl->area_cc2_m2_per_m * y;
+    double dv2 = area * vel;
+
+    /* Hysteresis force law (eq. 27). */
+    double pg = p2 - pa;
+    double up = plant_up_limit_pag(pl->band, y);
+    double down = up - pl->band->down_offset_pa;
+    double force = 0.0;
+    if (pg > up)
+        force = (pg - up) * area;
+    else if (pg < down)
+        force = (pg - down) * area;
+    force -= pl->damping_n_s_per_m * vel;
+
+    /* EXTENSION POINT: unmodelled effects (thermal time constant, Coulomb
+     * friction, valve and line delays, leaks, nonlinear area) add their terms
+     * to the flows, force and derivatives here, and their states after
+     * PLANT_X_VEL. */
+
+    double d_p1 = pl->zn * pl->rt * (m_c - m_s - m_v - m_a) / p->pipe_volume_m3;
+    double d_p2 = pl->zn * (pl->rt * m_s - p2 * dv2) / v2;
+    double d_p3 = 0.0;
+    if (m_a != 0.0) {
+        if (p->acc_type == PLANT_ACC_DIAPHRAGM) {
+            double v3, dv3;
+            plant_diaphragm_volume(p3, &v3, &dv3);
+            d_p3 = pl->rt * m_a / (v3 / pl->zn + p3 * dv3);
+        } else {
+            d_p3 = pl->zn * pl->rt * m_a / p->acc_volume_m3;
+        }
+    }
+
+    dxdt[PLANT_X_OMEGA] = alpha;
+    dxdt[PLANT_X_P1] = d_p1;
+    dxdt[PLANT_X_P2] = d_p2;
+    dxdt[PLANT_X_P3] = d_p3;
+    dxdt[PLANT_X_V2] = dv2;
+    dxdt[PLANT_X_Y] = vel;
+    dxdt[PLANT_X_VEL] = force / pl->mass_kg;
+    if (flows) {
+        flows->compressor = m_c;
+        flows->spring_valve = m_s;
+        flows->vent_valve = m_v;
+        flows->acc_valve = m_a;
+    }
+}
+
+static void update_load(plant *pl, double load_n)
+{
+    pl->load_cached_n = load_n;
+    pl->mass_kg = load_n / PLANT_STANDARD_GRAVITY + pl->p.extra_mass_kg;
+    area_coefficients(&pl->p, load_n, &pl->area_cc1_m2, &pl->area_cc2_m2_per_m);
+    pl->band = plant_band_for_load(&pl->p, load_n);
+}
+
+void plant_init(plant *pl, const plant_params *p)
+{
+    memset(pl, 0, sizeof *pl);
+    pl->p = *p;
+    double k = p->heat_ratio_k;
+    pl->inv_k = 1.0 / k;
+    pl->crit_ratio = pow(2.0 / (k + 1.0), k / (k - 1.0));
+    pl->rt = p->gas_constant_j_per_kg_k * p->temperature_k;
+    pl->zn = p->compressibility * p->polytropic_n;
+    pl->flow_subsonic = sqrt(2.0 * k / ((k - 1.0) * pl->rt));
+    pl->flow_choked = sqrt(k / pl->rt) * pow(2.0 / (k + 1.0), (k + 1.0) / (2.0 * (k - 1.0)));
+    pl->spring_valve_area_m2 = PLANT_PI / 4.0 * p->spring_valve_diameter_m * p->spring_valve_diameter_m;
+    pl->vent_valve_area_m2 = PLANT_PI / 4.0 * p->vent_valve_diameter_m * p->vent_valve_diameter_m;
+    pl->acc_valve_area_m2 = PLANT_PI / 4.0 * p->acc_valve_diameter_m * p->acc_valve_diameter_m;
+    pl->x[PLANT_X_OMEGA] = p->init_motor_speed_rad_per_s;
+    pl->x[PLANT_X_P1] = p->init_p_pipe_pa;
+    pl->x[PLANT_X_P2] = p->init_p_spring_pa;
+    pl->x[PLANT_X_P3] = p->acc_type == PLANT_ACC_NONE ? p->ambient_pa : p->acc_charge_pa;
+    pl->x[PLANT_X_V2] = p->spring_volume0_m3;
+    pl->x[PLANT_X_Y] = p->init_height_m;
+    pl->x[PLANT_X_VEL] = p->init_velocity_m_per_s;
+    /* Program: B is only assigned from the velocity, starting from 0 (Pascal globals). */
+    pl->damping_n_s_per_m = 0.0;
+    update_load(pl, 0.0);
+}
+
+void plant_set_inputs(plant *pl, const plant_inputs *in)
+{
+    pl->in = *in;
+    if (in->load_n != pl->load_cached_n)
+        update_load(pl, in->load_n);
+}
+
+void plant_step(plant *pl, double h)
+{
+    /* Damping follows the direction of motion at the start of the step; while
+     * the platform is (nearly) at rest the last value is kept (the program). */
+    double vel = pl->x[PLANT_X_VEL];
+    if (vel > pl->p.velocity_deadband_m_per_s)
+        pl->damping_n_s_per_m = pl->p.damping_up_n_s_per_m;
+    else if (vel < -pl->p.velocity_deadband_m_per_s)
+        pl->damping_n_s_per_m = pl->p.damping_down_n_s_per_m;
+
+    double k1[PLANT_NX], k2[PLANT_NX], k3[PLANT_NX], k4[PLANT_NX], xt[PLANT_NX];
+    double *x = pl->x;
+    plant_derivatives(pl, x, k1, NULL);
+    for (int i = 0; i < PLANT_NX; i++)
+        xt[i] = x[i] + 0.5 * h * k1[i];
+    plant_derivatives(pl, xt, k2, NULL);
+    for (int i = 0; i < PLANT_NX; i++)
+        xt[i] = x[i] + 0.5 * h * k2[i];
+    plant_derivatives(pl, xt, k3, NULL);
+    for (int i = 0; i < PLANT_NX; i++)
+        xt[i] = x[i] + h * k3[i];
+    plant_derivatives(pl, xt, k4, NULL);
+    for (int i = 0; i < PLANT_NX; i++)
+        x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    pl->t_s += h;
+
+    /* End stops: the platform cannot pass them. */
+    if (x[PLANT_X_Y] < pl->p.height_min_m) {
+        x[PLANT_X_Y] = pl->p.height_min_m;
+        if (x[PLANT_X_VEL] < 0.0)
+            x[PLANT_X_VEL] = 0.0;
+    } else if (x[PLANT_X_Y] > pl->p.height_max_m) {
+        x[PLANT_X_Y] = pl->p.height_max_m;
+        if (x[PLANT_X_VEL] > 0.0)
+            x[PLANT_X_VEL] = 0.0;
+    }
+}
+
+void plant_advance(plant *pl, double dt_s, int substeps)
+{
+    if (substeps < 1)
+        substeps = 1;
+    double h = dt_s / substeps;
+    for (int i = 0; i < substeps; i++)
+        plant_step(pl, h);
+}
+
+/* ---- sensors ---- */
+
+void plant_rng_seed(plant_rng *r, uint32_t seed)
+{
+    /* splitmix64 of the seed, so that seed 0 is fine too */
+    uint64_t z = (uint64_t)seed + 0x9E3779B97F4A7C15ull;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    r->s = (z ^ (z >> 31)) | 1u;
+    r->have_spare = false;
+    r->spare = 0.0;
+}
+
+static double rng_uniform(plant_rng *r)
+{
+    r->s ^= r->s >> 12;
+    r->s ^= r->s << 25;
+    r->s ^= r->s >> 27;
+    uint64_t v = r->s * 0x2545F4914F6CDD1Dull;
+    return ((double)(v >> 11) + 0.5) * (1.0 / 9007199254740992.0); /* (0,1) */
+}
+
+static double rng_gauss(plant_rng *r)
+{
+    if (r->have_spare) {
+        r->have_spare = false;
+        return r->spare;
+    }
+    double u1 = rng_uniform(r), u2 = rng_uniform(r);
+    double mag = sqrt(-2.0 * log(u1));
+    r->spare = mag * sin(2.0 * PLANT_PI * u2);
+    r->have_spare = true;
+    return mag * cos(2.0 * PLANT_PI * u2);
+}
+
+static uint16_t to_counts(double value, double eng_lo, double eng_hi, double raw_lo, double raw_hi,
+                          double noise_sd, plant_rng *rng)
+{
+    double c = raw_lo + (value - eng_lo) * (raw_hi - raw_lo) / (eng_hi - eng_lo);
+    if (noise_sd > 0.0 && rng)
+        c += noise_sd * rng_gauss(rng);
+    c = floor(c + 0.5);
+    if (c < 0.0)
+        c = 0.0;
+    if (c > 4095.0)
+        c = 4095.0;
+    return (uint16_t)c;
+}
+
+void plant_sensor_counts(const plant *pl, const plant_sensor_params *sp, plant_rng *rng, uint16_t counts[4])
+{
+    double p3 = pl->p.acc_type == PLANT_ACC_NONE ? pl->p.ambient_pa : pl->x[PLANT_X_P3];
+    counts[0] = to_counts(pl->x[PLANT_X_Y], sp->height_lo_m, sp->height_hi_m, sp->height_lo_counts,
+                          sp->height_hi_counts, sp->noise_counts, rng);
+    const double pv[3] = {pl->x[PLANT_X_P2], pl->x[PLANT_X_P1], p3};
+    for (int i = 0; i < 3; i++)
+        counts[1 + i] = to_counts(pv[i], sp->pressure_lo_pa, sp->pressure_hi_pa, sp->pressure_lo_counts,
+                                  sp->pressure_hi_counts, sp->noise_counts, rng);
+}

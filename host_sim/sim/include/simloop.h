@@ -1,0 +1,67 @@
+/*
+ * Firmware in the loop: the plant (leveler_plant), the HAL over it
+ * (hal_sim.c) and the unchanged firmware (leveler_firmware).
+ *
+ * Each 10 ms tick: the load schedule sets the load, the plant integrates
+ * 10 ms with RK4 (config [solver] substeps_per_tick fixed sub-steps) under the
+ * outputs the firmware set last, the sensors turn the state into ADC counts,
+ * then leveler_app_tick() runs. The simulator owns time: hal_now_ms() is
+ * simulated milliseconds. Runs are deterministic.
+ *
+ * The firmware is one set of globals, so one simulation runs at a time per
+ * process (sim_run is not reentrant).
+ */
+#ifndef LEVELER_SIMLOOP_H
+#define LEVELER_SIMLOOP_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "plant.h"
+#include "runlog.h"
+
+typedef struct {
+    double t_s;    /* the load takes effect at this time */
+    double load_n; /* absolute load */
+} sim_load_step;
+
+/* The config's built-in scenario (base, +step at step_on, removed at step_off,
+ * end): out needs room for 4 steps. Returns the count; *end_s = scenario end. */
+size_t sim_schedule_from_config(const plant_config *cfg, sim_load_step out[4], double *end_s);
+
+/* A schedule file (CSV t_s,load_n; docs/config-format.md). On success *steps is
+ * malloc'ed (free it) and the run ends at the last time. -1 with
+ * "file:line: ..." in err on failure. */
+int sim_schedule_load(const char *path, sim_load_step **steps, size_t *count, char *err, size_t err_len);
+
+typedef struct {
+    const plant_config *config;
+    int algorithm;               /* 0 = the config's; 1 or 2 overrides */
+    const sim_load_step *steps;  /* NULL = the config's scenario */
+    size_t step_count;
+    double end_s;                /* 0 = the schedule's end; later = hold the last load */
+    runlog *log;                 /* optional: one row per tick */
+    runlog_row *rows;            /* optional caller buffer: one row per tick, t = 0 first */
+    size_t rows_cap;
+    void (*progress)(double t_s, double end_s, void *user); /* optional, about every simulated 5 % */
+    void *progress_user;
+} sim_options;
+
+typedef struct {
+    size_t ticks;         /* firmware ticks run (t = 0 included) */
+    size_t rows;          /* rows stored in the buffer */
+    double end_s;
+    plant final_plant;    /* plant at the end */
+} sim_result;
+
+/* Run a whole scenario. 0 on success; -1 with a message in err (refused
+ * setting, log write error). */
+int sim_run(const sim_options *opt, sim_result *res, char *err, size_t err_len);
+
+/* hal_sim.c: the HAL's view of the plant. */
+void sim_hal_reset(void);
+void sim_hal_set_counts(const uint16_t counts[4]);
+void sim_hal_set_time_ms(uint32_t now_ms);
+void sim_hal_get_outputs(bool out[5]);
+
+#endif /* LEVELER_SIMLOOP_H */

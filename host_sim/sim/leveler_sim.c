@@ -1,0 +1,219 @@
+/*
+ * leveler-sim: the unchanged firmware against the plant model.
+ *
+ *   leveler-sim --config FILE [--schedule FILE] [--algorithm 1|2] --log run.csv
+ *               [--summary run.json] [--plot run.png] [--units thesis|si] [--end-s S]
+ *
+ * Writes the run log (runlog.h format). With --summary/--plot it then runs
+ *   $LEVELER_PYTHON -m leveler.report --log run.csv ... (PYTHONPATH=<source>/scripts)
+ * which prints the thesis comparison table. LEVELER_PYTHON and
+ * LEVELER_SCRIPTS_DIR in the environment override the built-in paths.
+ * Exit status: 0 ok, 2 usage or configuration error, 1 run or report failure.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "simloop.h"
+
+#ifndef LEVELER_SOURCE_DIR
+#define LEVELER_SOURCE_DIR "."
+#endif
+#ifndef LEVELER_DEFAULT_PYTHON
+#define LEVELER_DEFAULT_PYTHON "python3"
+#endif
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+            "usage: leveler-sim --config FILE [--schedule FILE] [--algorithm 1|2] --log run.csv\n"
+            "                   [--summary run.json] [--plot run.png] [--units thesis|si] [--end-s S]\n"
+            "  --config FILE      plant, sensors, controller settings, scenario (docs/config-format.md)\n"
+            "  --schedule FILE    load steps, CSV t_s,load_n (replaces the config's scenario)\n"
+            "  --algorithm 1|2    1 no accumulator, 2 accumulator (default: the config's)\n"
+            "  --log FILE         run log, one row per 10 ms tick (\"-\" = stdout)\n"
+            "  --summary FILE     event figures as JSON (runs python -m leveler.report)\n"
+            "  --plot FILE        figure of the run (runs python -m leveler.report)\n"
+            "  --units thesis|si  units of the printed comparison table (default thesis)\n"
+            "  --end-s S          simulate to S seconds (holds the last load past the schedule)\n");
+}
+
+static void progress(double t_s, double end_s, void *user)
+{
+    (void)user;
+    if (end_s >= 600.0)
+        fprintf(stderr, "leveler-sim: %.0f / %.0f s simulated\n", t_s, end_s);
+}
+
+static int run_report(const char *log, const char *summary, const char *plot, const char *config, const char *units)
+{
+    const char *py = getenv("LEVELER_PYTHON");
+    if (!py || !*py)
+        py = LEVELER_DEFAULT_PYTHON;
+    const char *scripts = getenv("LEVELER_SCRIPTS_DIR");
+    char scripts_buf[1024];
+    if (!scripts || !*scripts) {
+        snprintf(scripts_buf, sizeof scripts_buf, "%s/scripts", LEVELER_SOURCE_DIR);
+        scripts = scripts_buf;
+    }
+    char module[1200];
+    struct stat st;
+    snprintf(module, sizeof module, "%s/leveler/report.py", scripts);
+    if (stat(module, &st) != 0) {
+        fprintf(stderr,
+                "leveler-sim: the log is written, but --summary/--plot need the analysis module %s, "
+                "which is not there (yet); run it later with: PYTHONPATH=%s %s -m leveler.report --log %s\n",
+                module, scripts, py, log);
+        return 1;
+    }
+    const char *argv[16];
+    int n = 0;
+    argv[n++] = py;
+    argv[n++] = "-m";
+    argv[n++] = "leveler.report";
+    argv[n++] = "--log";
+    argv[n++] = log;
+    if (summary) {
+        argv[n++] = "--summary";
+        argv[n++] = summary;
+    }
+    if (plot) {
+        argv[n++] = "--plot";
+        argv[n++] = plot;
+    }
+    if (config) {
+        argv[n++] = "--config";
+        argv[n++] = config;
+    }
+    argv[n++] = "--units";
+    argv[n++] = units;
+    argv[n] = NULL;
+    fflush(stdout);
+    pid_t pid = fork();
+    if (pid < 0) {
+        fprintf(stderr, "leveler-sim: fork: %s\n", strerror(errno));
+        return 1;
+    }
+    if (pid == 0) {
+        setenv("PYTHONPATH", scripts, 1);
+        execvp(py, (char *const *)argv);
+        fprintf(stderr, "leveler-sim: cannot run %s: %s (set LEVELER_PYTHON)\n", py, strerror(errno));
+        _exit(127);
+    }
+    int status;
+    while (waitpid(pid, &status, 0) < 0)
+        if (errno != EINTR)
+            return 1;
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+        fprintf(stderr, "leveler-sim: leveler.report failed (status %d)\n",
+                WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+        return 1;
+    }
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    const char *config = NULL, *schedule = NULL, *log = NULL, *summary = NULL, *plot = NULL;
+    const char *units = "thesis";
+    int algorithm = 0;
+    double end_s = 0.0;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0) {
+            usage(stdout);
+            return 0;
+        }
+        if (i + 1 >= argc) {
+            fprintf(stderr, "leveler-sim: %s needs a value\n", a);
+            usage(stderr);
+            return 2;
+        }
+        const char *v = argv[++i];
+        if (strcmp(a, "--config") == 0)
+            config = v;
+        else if (strcmp(a, "--schedule") == 0)
+            schedule = v;
+        else if (strcmp(a, "--log") == 0)
+            log = v;
+        else if (strcmp(a, "--summary") == 0)
+            summary = v;
+        else if (strcmp(a, "--plot") == 0)
+            plot = v;
+        else if (strcmp(a, "--units") == 0) {
+            if (strcmp(v, "thesis") != 0 && strcmp(v, "si") != 0) {
+                fprintf(stderr, "leveler-sim: --units must be thesis or si, not '%s'\n", v);
+                return 2;
+            }
+            units = v;
+        } else if (strcmp(a, "--algorithm") == 0) {
+            if (strcmp(v, "1") != 0 && strcmp(v, "2") != 0) {
+                fprintf(stderr, "leveler-sim: --algorithm must be 1 or 2, not '%s'\n", v);
+                return 2;
+            }
+            algorithm = v[0] - '0';
+        } else if (strcmp(a, "--end-s") == 0) {
+            char *e;
+            end_s = strtod(v, &e);
+            if (*e || !(end_s > 0.0 && end_s <= 1e7)) {
+                fprintf(stderr, "leveler-sim: --end-s must be a number in (0, 1e7], not '%s'\n", v);
+                return 2;
+            }
+        } else {
+            fprintf(stderr, "leveler-sim: unknown option '%s'\n", a);
+            usage(stderr);
+            return 2;
+        }
+    }
+    if (!config || !log) {
+        fprintf(stderr, "leveler-sim: --config and --log are required\n");
+        usage(stderr);
+        return 2;
+    }
+    if ((summary || plot) && strcmp(log, "-") == 0) {
+        fprintf(stderr, "leveler-sim: --summary/--plot need --log to be a file\n");
+        return 2;
+    }
+
+    static plant_config cfg;
+    char err[1024];
+    if (plant_config_load(config, &cfg, err, sizeof err) != 0) {
+        fprintf(stderr, "leveler-sim: %s\n", err);
+        return 2;
+    }
+    sim_load_step *steps = NULL;
+    size_t nsteps = 0;
+    if (schedule && sim_schedule_load(schedule, &steps, &nsteps, err, sizeof err) != 0) {
+        fprintf(stderr, "leveler-sim: %s\n", err);
+        return 2;
+    }
+
+    runlog_options lo = {.path = log, .config_name = cfg.name, .source = "sim", .rotate_bytes = 0, .keep_files = 0};
+    runlog *rl = runlog_open(&lo, err, sizeof err);
+    if (!rl) {
+        fprintf(stderr, "leveler-sim: %s\n", err);
+        free(steps);
+        return 2;
+    }
+    sim_options so = {.config = &cfg, .algorithm = algorithm, .steps = steps, .step_count = nsteps,
+                      .end_s = end_s, .log = rl, .progress = progress};
+    static sim_result res;
+    int rc = sim_run(&so, &res, err, sizeof err);
+    free(steps);
+    if (runlog_close(rl) != 0 && rc == 0) {
+        fprintf(stderr, "leveler-sim: closing %s failed: %s\n", log, strerror(errno));
+        return 1;
+    }
+    if (rc != 0) {
+        fprintf(stderr, "leveler-sim: %s\n", err);
+        return 1;
+    }
+    if (summary || plot)
+        return run_report(log, summary, plot, config, units);
+    return 0;
+}

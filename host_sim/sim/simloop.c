@@ -1,0 +1,171 @@
+/* The firmware-in-the-loop run (simloop.h). */
+#include "simloop.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "leveler/app.h"
+#include "leveler/hal.h"
+#include "leveler/regmap.h"
+#include "leveler/regmap_addr.h"
+
+static int write_u16(uint16_t addr, uint16_t v, const char *what, char *err, size_t len)
+{
+    uint16_t reason = 0;
+    if (leveler_regs_write(LEVELER_TABLE_HOLDING_REGISTER, addr, 1, &v, &reason) != LEVELER_REG_OK) {
+        snprintf(err, len, "firmware refused %s = %u (holding %u, reason %u)", what, v, addr, reason);
+        return -1;
+    }
+    return 0;
+}
+
+static int32_t round_i32(double v)
+{
+    if (v > 2147483647.0)
+        return 2147483647;
+    if (v < -2147483648.0)
+        return (-2147483647 - 1);
+    return (int32_t)lround(v);
+}
+
+static void put_i32(uint16_t *w, int32_t v)
+{
+    uint32_t u = (uint32_t)v;
+    w[0] = (uint16_t)(u >> 16); /* high word first */
+    w[1] = (uint16_t)(u & 0xFFFFu);
+}
+
+static int write_block(uint16_t addr, const uint16_t *w, uint16_t n, const char *what, char *err, size_t len)
+{
+    uint16_t reason = 0;
+    if (leveler_regs_write(LEVELER_TABLE_HOLDING_REGISTER, addr, n, w, &reason) != LEVELER_REG_OK) {
+        snprintf(err, len, "firmware refused %s (holding %u..%u, reason %u)", what, addr, addr + n - 1u, reason);
+        return -1;
+    }
+    return 0;
+}
+
+/* What a commissioning engineer writes: calibration, band, algorithm, accumulator charge. */
+static int commission(const plant_config *cfg, int algorithm, char *err, size_t len)
+{
+    const plant_sensor_params *s = &cfg->sensors;
+    static const uint16_t cal_addr[4] = {LEVELER_HR_CAL_HEIGHT_RAW_LO, LEVELER_HR_CAL_P_SPRING_RAW_LO,
+                                         LEVELER_HR_CAL_P_PIPE_RAW_LO, LEVELER_HR_CAL_P_ACC_RAW_LO};
+    for (int ch = 0; ch < 4; ch++) {
+        uint16_t w[6];
+        double raw_lo = ch == 0 ? s->height_lo_counts : s->pressure_lo_counts;
+        double raw_hi = ch == 0 ? s->height_hi_counts : s->pressure_hi_counts;
+        double eng_lo = ch == 0 ? s->height_lo_m * 1e6 : s->pressure_lo_pa;
+        double eng_hi = ch == 0 ? s->height_hi_m * 1e6 : s->pressure_hi_pa;
+        w[0] = (uint16_t)lround(raw_lo);
+        w[1] = (uint16_t)lround(raw_hi);
+        put_i32(&w[2], round_i32(eng_lo));
+        put_i32(&w[4], round_i32(eng_hi));
+        if (write_block(cal_addr[ch], w, 6, "calibration", err, len) != 0)
+            return -1;
+    }
+    uint16_t band[4];
+    put_i32(&band[0], round_i32(cfg->band_lower_m * 1e6));
+    put_i32(&band[2], round_i32(cfg->band_upper_m * 1e6));
+    if (write_block(LEVELER_HR_BAND_LOWER_UM, band, 4, "band", err, len) != 0)
+        return -1;
+    if (write_u16(LEVELER_HR_ALGORITHM, (uint16_t)algorithm, "algorithm", err, len) != 0)
+        return -1;
+    uint16_t charge[2];
+    put_i32(charge, round_i32(cfg->plant.acc_charge_pa));
+    return write_block(LEVELER_HR_ACC_CHARGE_MAX_PA, charge, 2, "accumulator charge", err, len);
+}
+
+static void fill_row(runlog_row *row, const plant *pl, double t_s, const bool out[5])
+{
+    row->t_s = t_s;
+    row->height_m = pl->x[PLANT_X_Y];
+    row->p_spring_pa = pl->x[PLANT_X_P2];
+    row->p_pipe_pa = pl->x[PLANT_X_P1];
+    row->p_acc_pa = pl->p.acc_type == PLANT_ACC_NONE ? NAN : pl->x[PLANT_X_P3];
+    row->load_n = pl->in.load_n;
+    row->compressor = out[HAL_OUT_COMPRESSOR];
+    row->solenoid = out[HAL_OUT_SPRING_VALVE];
+    row->vent = out[HAL_OUT_VENT_VALVE];
+    row->acc_valve = out[HAL_OUT_ACC_VALVE];
+}
+
+int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
+{
+    const plant_config *cfg = o->config;
+    sim_load_step builtin[4];
+    const sim_load_step *steps = o->steps;
+    size_t nsteps = o->step_count;
+    double end_s;
+    if (!steps) {
+        nsteps = sim_schedule_from_config(cfg, builtin, &end_s);
+        steps = builtin;
+    } else {
+        end_s = steps[nsteps - 1].t_s;
+    }
+    if (o->end_s > 0.0)
+        end_s = o->end_s;
+    int algorithm = o->algorithm ? o->algorithm : cfg->algorithm;
+    memset(res, 0, sizeof *res);
+
+    static plant pl; /* large; one simulation at a time anyway */
+    plant_init(&pl, &cfg->plant);
+    plant_rng rng;
+    plant_rng_seed(&rng, cfg->sensors.noise_seed);
+    plant_rng *rngp = cfg->sensors.noise_counts > 0.0 ? &rng : NULL;
+
+    sim_hal_reset();
+    leveler_app_init();
+    if (commission(cfg, algorithm, err, err_len) != 0)
+        return -1;
+
+    const uint32_t tick_ms = LEVELER_TICK_MS;
+    const double tick_s = tick_ms / 1000.0;
+    const uint64_t ticks = (uint64_t)llround(end_s / tick_s);
+    size_t step_i = 0;
+    plant_inputs in = {false, false, false, false, steps[0].load_n};
+    bool out[5];
+    uint16_t counts[4];
+    double next_progress = 0.0;
+
+    for (uint64_t k = 0;; k++) {
+        double t = (double)k * tick_s;
+        /* sense and control at t */
+        plant_sensor_counts(&pl, &cfg->sensors, rngp, counts);
+        sim_hal_set_counts(counts);
+        sim_hal_set_time_ms((uint32_t)(k * tick_ms));
+        leveler_app_tick();
+        sim_hal_get_outputs(out);
+        /* the load for the interval starting at t (half a tick of slack against rounding) */
+        while (step_i + 1 < nsteps && steps[step_i + 1].t_s <= t + 0.5 * tick_s)
+            step_i++;
+        in.load_n = steps[step_i].load_n;
+        in.compressor = out[HAL_OUT_COMPRESSOR];
+        in.spring_valve = out[HAL_OUT_SPRING_VALVE];
+        in.vent_valve = out[HAL_OUT_VENT_VALVE];
+        in.acc_valve = out[HAL_OUT_ACC_VALVE];
+        plant_set_inputs(&pl, &in);
+        if (o->log || (o->rows && res->rows < o->rows_cap)) {
+            runlog_row row;
+            fill_row(&row, &pl, t, out);
+            if (o->rows && res->rows < o->rows_cap)
+                o->rows[res->rows++] = row;
+            if (o->log && runlog_write(o->log, &row) != 0) {
+                snprintf(err, err_len, "run log: write failed at t = %.2f s", t);
+                return -1;
+            }
+        }
+        res->ticks++;
+        if (o->progress && t >= next_progress) {
+            o->progress(t, end_s, o->progress_user);
+            next_progress += end_s / 20.0;
+        }
+        if (k >= ticks)
+            break;
+        plant_advance(&pl, tick_s, cfg->substeps_per_tick);
+    }
+    res->end_s = end_s;
+    res->final_plant = pl;
+    return 0;
+}
