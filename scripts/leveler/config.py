@@ -137,9 +137,9 @@ def _load_chain(path, depth=0) -> List[Tuple[str, configparser.ConfigParser]]:
 
 
 def _lookup(chain, section, base, units):
-    """The last value of ``base_<unit>`` for any unit in ``units``, in SI,
-    with the file it came from; (None, None) if absent. ``units`` values are
-    (scale, offset); offset None means a gauge pressure (ambient added later)."""
+    """The last value of ``base_<unit>`` for any unit in ``units``, in SI, and
+    (file, key) it came from; (None, None) if absent. ``units`` values are
+    (scale, offset); offset None marks a gauge pressure, kept gauge here."""
     found = None
     for path, cp in chain:
         if not cp.has_section(section):
@@ -147,8 +147,9 @@ def _lookup(chain, section, base, units):
         hits = [(u, cp.get(section, f"{base}_{u}")) for u in units
                 if cp.has_option(section, f"{base}_{u}")]
         if len(hits) > 1:
-            raise _error(path, section, f"{base}_{hits[1][0]}",
-                         f"given twice (also as {base}_{hits[0][0]})")
+            keys = sorted((f"{base}_{u}" for u, _ in hits),
+                          key=lambda k: _line_of(path, section, k) or 0)
+            raise _error(path, section, keys[-1], f"given twice (also as {keys[0]})")
         if hits:
             u, text = hits[0]
             try:
@@ -160,7 +161,7 @@ def _lookup(chain, section, base, units):
         return None, None
     u, value, path = found
     scale, offset = units[u]
-    return (value * scale, "gauge") if offset is None else (value * scale + offset, path)
+    return value * scale + (offset or 0.0), (path, f"{base}_{u}")
 
 
 def load(path) -> AnalysisConfig:
@@ -178,11 +179,12 @@ def load(path) -> AnalysisConfig:
     ambient = thesis.AMBIENT_PA if ambient is None else ambient
 
     lo, _ = _lookup(chain, "controller", "band_lower", LENGTH)
-    hi, _ = _lookup(chain, "controller", "band_upper", LENGTH)
+    hi, where = _lookup(chain, "controller", "band_upper", LENGTH)
     lo = thesis.SCENARIO["band_low_m"] if lo is None else lo
     hi = thesis.SCENARIO["band_high_m"] if hi is None else hi
     if not hi > lo:
-        raise _error(path, "controller", "band_upper", f"upper {hi:.6g} m is not above lower {lo:.6g} m")
+        file_, key = where if where else (path, "band_upper")
+        raise _error(file_, "controller", key, f"upper {hi:.6g} m is not above lower {lo:.6g} m")
 
     base, _ = _lookup(chain, "scenario", "base_load", FORCE)
 

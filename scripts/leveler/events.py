@@ -11,11 +11,14 @@ Preparation
     The *load step* is the first event that adds load, the *load removal* the
     first event after it that takes load away. Each analysis window runs from
     its event to the next load event (or the end of the log).
-  * Heights and pressures are smoothed by a moving median over
+  * Heights are smoothed by a moving median over
     ``smooth_s`` seconds (odd number of samples), which removes sensor noise
-    and spikes without rounding the corners of a step. A signal without noise
-    (median sample-to-sample change zero, as from the simulator) is used as it
-    is, since a median clips peaks slightly.
+    and spikes and keeps plateaus, ramps and their corners exactly.
+  * A pressure "at" a corner (coming to rest, leaving) is the value there of
+    a straight line fitted, with one pass of outlier rejection, to the raw
+    pressure over ``fit_s`` seconds on the resting side of the corner. Exact
+    on a clean log; unbiased on a noisy one, where any centred filter is
+    biased at a sharp turn of the pressure.
   * The rest tolerance is ``max(rest_tol_min_m, 5 * sigma_smoothed,
     1.5 * quantum)``: sigma from the median absolute second difference (zero
     on flats and straight ramps, so motion does not count as noise), shrunk
@@ -31,28 +34,32 @@ Load step (platform drops, rests, climbs back)
   * ``time_return_after_step_s``: from the step to the first time after i_min
     the smoothed height reaches the band's lower edge (linear interpolation
     between samples). None if it never does.
-  * Coming to rest (t_rest): first time after the step the smoothed height
-    is within the tolerance of the bottom. Break-away (t_break): the last time
-    before the return (or before the window end) it is within the tolerance;
-    None if the platform is still there when the window ends.
-  * ``lowest_height_m``: median raw height while at the bottom (t_rest ..
-    t_break or window end): the level the platform rests at.
+  * ``lowest_height_m``: the resting level, the median raw height of the
+    samples whose smoothed height is within the tolerance of the minimum
+    (before the return, if any).
+  * Coming to rest (t_rest): the first time after the step the smoothed
+    height is within the tolerance of the resting level. Break-away (t_break):
+    the last time before the return (or the window end) it is. Both are then
+    moved to where the motion just outside the tolerance (between 2 and 1
+    tolerances from the level), extended in a straight line, meets the level,
+    so the tolerance does not shorten the rest. t_break is None if the
+    platform is still there when the window ends.
   * ``time_stuck_bottom_s`` = t_break - t_rest: "from coming to rest until it
     starts to move back".
-  * ``p2_drop_stop_pa``: smoothed spring pressure at t_rest ("P2 when the
-    drop stops").
-  * ``p2_breakaway_pa``: the highest smoothed spring pressure while at the
-    bottom (t_rest .. t_break): the pressure that breaks the platform free.
+  * ``p2_drop_stop_pa``: spring pressure at t_rest ("P2 when the drop
+    stops").
+  * ``p2_breakaway_pa``: spring pressure at t_break, the pressure that breaks
+    the platform free (while stuck the compressor only raises it).
   * ``p2_after_climb_pa``: median spring pressure over the last ``settle_s``
     seconds of the window after the return into the band (the pressure the
     platform settles at after the climb); None without a return.
 
 Load removal (platform jumps, rests at the top, comes down): the mirror image.
   * ``highest_height_m``: median raw height while at the top.
-  * ``p2_jump_pa``: smoothed spring pressure when the platform comes to rest
-    at the top.
+  * ``p2_jump_pa``: spring pressure when the platform comes to rest at the
+    top.
   * ``time_stuck_top_s``: from coming to rest at the top until it starts down.
-  * ``p2_start_down_pa``: the lowest smoothed spring pressure while at the top.
+  * ``p2_start_down_pa``: spring pressure when it starts down.
   * ``time_return_after_removal_s``: from the removal to the first time after
     the top the smoothed height reaches the band's upper edge.
 
@@ -89,6 +96,7 @@ class EventOptions:
     rest_tol_min_m: float = 0.25e-3  # about the thesis's 0.01 in resolution
     before_s: float = 1.0            # window for the height before the step
     settle_s: float = 1.0            # window for the settled pressure after the climb
+    fit_s: float = 0.5               # line fit for the pressure at a corner
 
 
 @dataclasses.dataclass
@@ -262,6 +270,23 @@ def _extend(dt_per_tol, tol, distance):
     return min(max(distance / tol * dt_per_tol, 0.0), dt_per_tol)
 
 
+def _line_value(t, y, t0, t1, when):
+    """Value at ``when`` of the least-squares line through the finite samples
+    of y in [t0, t1]; falls back to interpolation with fewer than 3 samples."""
+    inside = (t >= t0) & (t <= t1) & np.isfinite(y)
+    if np.count_nonzero(inside) < 3:
+        return _value_at(t, y, when)
+    tc, yc = t[inside] - when, y[inside]
+    slope, intercept = np.polyfit(tc, yc, 1)
+    # One pass of outlier rejection, so a spike does not tilt the line.
+    resid = yc - (slope * tc + intercept)
+    mad = 1.4826 * float(np.median(np.abs(resid)))
+    keep = np.abs(resid) <= max(5.0 * mad, 1e-9 * max(float(np.max(np.abs(yc))), 1.0))
+    if 3 <= np.count_nonzero(keep) < len(yc):
+        slope, intercept = np.polyfit(tc[keep], yc[keep], 1)
+    return _clean(intercept)
+
+
 def _value_at(t, y, when):
     if when is None or not np.isfinite(y).any():
         return None
@@ -269,7 +294,7 @@ def _value_at(t, y, when):
     return _clean(np.interp(when, t[ok], y[ok]))
 
 
-def _excursion(t, h_raw, h_s, p2_s, p2_raw, event, window_end, direction, tol, opts):
+def _excursion(t, h_raw, h_s, p2_raw, event, window_end, direction, tol, opts):
     """Drop (direction -1) or jump (+1) after ``event`` within [event, window_end)."""
     lo, hi = event.index, window_end
     if hi - lo < 2:
@@ -293,35 +318,42 @@ def _excursion(t, h_raw, h_s, p2_s, p2_raw, event, window_end, direction, tol, o
         ex.t_return_s = _crossing(t[lo:hi], y, k_ret, edge_y)
     search_end = k_ret if k_ret is not None else len(y)
 
-    # At the extreme: within tolerance of it.
+    # At the extreme. Pass 1: within the tolerance of the smoothed extreme
+    # gives the resting samples and their level (median of the raw heights).
+    # Pass 2: the same around that level, which noise does not bias.
     tt = t[lo:hi]
     near = np.flatnonzero(y[:search_end] <= y_ext + tol)
+    rest = slice(lo + int(near[0]), lo + int(near[-1]) + 1)
+    ex.level_m = _clean(np.median(h_raw[rest]))
+    y_ref = max(sgn * ex.level_m, y_ext)
+    near = np.flatnonzero(y[:search_end] <= y_ref + tol)
     k_rest, k_leave = int(near[0]), int(near[-1])
     still_there = k_leave >= len(y) - 1
-    rest = slice(lo + k_rest, lo + k_leave + 1)
-    ex.level_m = _clean(np.median(h_raw[rest]))
-    level_y = sgn * ex.level_m
-    ex.t_rest_s = _crossing(tt, y, k_rest, y_ext + tol) if k_rest > 0 else float(tt[0])
+    ex.t_rest_s = _crossing(tt, y, k_rest, y_ref + tol) if k_rest > 0 else float(tt[0])
     # Corner refinement: extend the motion just outside the tolerance (between
-    # 2*tol and tol from the extreme) in a straight line to the resting level,
-    # so the tolerance itself does not shorten or lengthen the rest.
-    far = np.flatnonzero(y[:k_rest] > y_ext + 2 * tol)
+    # 2*tol and tol from the level) in a straight line to the level, so the
+    # tolerance itself does not shorten the rest.
+    far = np.flatnonzero(y[:k_rest] > y_ref + 2 * tol)
     if k_rest > 0 and far.size:
-        t0 = _crossing(tt, y, int(far[-1]) + 1, y_ext + 2 * tol)
-        ex.t_rest_s += _extend(ex.t_rest_s - t0, tol, y_ext + tol - level_y)
+        t0 = _crossing(tt, y, int(far[-1]) + 1, y_ref + 2 * tol)
+        ex.t_rest_s += _extend(ex.t_rest_s - t0, tol, tol)
     if not still_there:
-        ex.t_leave_s = _crossing(tt, y, k_leave + 1, y_ext + tol)
-        far = np.flatnonzero(y[k_leave + 1:search_end] >= y_ext + 2 * tol)
+        ex.t_leave_s = _crossing(tt, y, k_leave + 1, y_ref + tol)
+        far = np.flatnonzero(y[k_leave + 1:search_end] >= y_ref + 2 * tol)
         if far.size:
-            t2 = _crossing(tt, y, k_leave + 1 + int(far[0]), y_ext + 2 * tol)
-            ex.t_leave_s -= _extend(t2 - ex.t_leave_s, tol, y_ext + tol - level_y)
+            t2 = _crossing(tt, y, k_leave + 1 + int(far[0]), y_ref + 2 * tol)
+            ex.t_leave_s -= _extend(t2 - ex.t_leave_s, tol, tol)
             ex.t_leave_s = max(ex.t_leave_s, ex.t_rest_s)
-    ex.p2_rest_pa = _value_at(t, p2_s, ex.t_rest_s)
-    if not still_there and np.isfinite(p2_s[lo:hi]).any():
-        inside = (t >= ex.t_rest_s) & (t <= ex.t_leave_s)
-        seg_p = np.concatenate([p2_s[inside], [_value_at(t, p2_s, ex.t_rest_s),
-                                               _value_at(t, p2_s, ex.t_leave_s)]]).astype(float)
-        ex.p2_leave_pa = _clean(np.nanmax(seg_p) if direction < 0 else np.nanmin(seg_p))
+    # Pressures at the two corners: a straight line through the (despiked)
+    # pressure on the resting side of the corner, evaluated at the corner. It
+    # is exact on a clean log and, unlike a centred median, unbiased on a
+    # noisy one where the pressure turns sharply.
+    t_end_rest = ex.t_leave_s if ex.t_leave_s is not None else float(tt[-1])
+    ex.p2_rest_pa = _line_value(t, p2_raw, ex.t_rest_s, min(ex.t_rest_s + opts.fit_s, t_end_rest),
+                                ex.t_rest_s)
+    if ex.t_leave_s is not None:
+        ex.p2_leave_pa = _line_value(t, p2_raw, max(ex.t_leave_s - opts.fit_s, ex.t_rest_s),
+                                     ex.t_leave_s, ex.t_leave_s)
     if ex.t_return_s is not None:
         t_end = float(t[hi - 1])
         settled = (t >= max(ex.t_return_s, t_end - opts.settle_s)) & (t <= t_end)
@@ -343,8 +375,10 @@ def analyze(log, options: Optional[EventOptions] = None) -> Analysis:
     sigma, quantum = noise_and_quantum(h)
     # A noiseless signal (a simulator's) is left as it is: a median would clip
     # its pressure peaks slightly.
-    h_s = moving_median(h, w) if sigma > 0 else h.copy()
-    p2_s = moving_median(p2, w) if noise_and_quantum(p2)[0] > 0 else p2.copy()
+    # The height is smoothed: a median keeps plateaus, ramps and their corners
+    # exactly and removes spikes. The pressure figures come from robust
+    # straight-line fits to the raw pressure instead.
+    h_s = moving_median(h, w)
     sigma_s = sigma * 1.2533 / math.sqrt(w)     # median of w samples: sigma*sqrt(pi/2)/sqrt(w)
     tol = max(opts.rest_tol_min_m, 5.0 * sigma_s, 1.5 * quantum)
 
@@ -364,9 +398,9 @@ def analyze(log, options: Optional[EventOptions] = None) -> Analysis:
         pre = (t >= e.t_s - opts.before_s) & (t < e.t_s)
         if pre.any():
             before = float(np.median(h[pre]))
-        step = _excursion(t, h, h_s, p2_s, p2, e, window_end(step_i), -1, tol, opts)
+        step = _excursion(t, h, h_s, p2, e, window_end(step_i), -1, tol, opts)
     if removal_i is not None:
-        removal = _excursion(t, h, h_s, p2_s, p2, events[removal_i], window_end(removal_i),
+        removal = _excursion(t, h, h_s, p2, events[removal_i], window_end(removal_i),
                              +1, tol, opts)
     return Analysis(events, step, removal, before, sigma, quantum, opts)
 
