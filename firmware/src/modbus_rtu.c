@@ -445,7 +445,7 @@ size_t leveler_modbus_rtu_handle(const uint8_t *req, size_t req_len, uint8_t *re
 static struct {
     uint8_t rx[LEVELER_RTU_MAX_ADU];
     size_t rx_len;
-    bool rx_overflow;       /* more than LEVELER_RTU_MAX_ADU bytes: drop to the gap */
+    bool rx_overflow;       /* bytes beyond a full rx: drop the frame at the gap */
     uint32_t last_rx_ms;    /* hal_now_ms() when bytes were last taken in */
     uint8_t tx[LEVELER_RTU_MAX_ADU];
     size_t tx_len;
@@ -527,8 +527,7 @@ void leveler_modbus_rtu_poll(void)
     /* Close the frame before taking new bytes in: bytes waiting in the HAL
      * after a full gap belong to the next frame. Unsigned difference: the
      * millisecond counter may wrap. */
-    const bool frame_open = rtu.rx_len > 0u || rtu.rx_overflow;
-    if (frame_open && (uint32_t)(now_ms - rtu.last_rx_ms) >= frame_gap_ms()) {
+    if (rtu.rx_len > 0u && (uint32_t)(now_ms - rtu.last_rx_ms) >= frame_gap_ms()) {
         close_frame();
         send_pending();
     }

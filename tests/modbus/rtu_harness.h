@@ -18,9 +18,9 @@ size_t rtu_test_frame(uint8_t *body, size_t len);
  * Run one input: data is an ADU without its CRC (address, function code, data).
  *  1. leveler_modbus_rtu_handle() on the bytes as they are (mostly a bad CRC);
  *  2. on the bytes with their CRC appended, with a full response buffer;
- *  3. again with a small response buffer (size % 12 bytes, NULL when 0);
+ *  3. again with a small response buffer (last byte % 12 bytes, NULL when 0);
  *  4. the framed bytes twice through leveler_modbus_rtu_poll() on the scripted
- *     HAL (chunked reads, 16-byte writes, a millisecond clock that wraps).
+ *     HAL (chunked reads, 8-byte writes, a millisecond clock that wraps).
  * After each step: settings still valid, a refused or ignored request changed
  * no setting, every reply well formed.
  */
