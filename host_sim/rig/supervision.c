@@ -3,6 +3,7 @@
 
 #include <arpa/inet.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <modbus.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -78,6 +79,8 @@ rig_supervision *rig_supervision_open(const rig_config *cfg, char *err, size_t e
         rig_supervision_close(sv);
         return NULL;
     }
+    /* accept_clients() drains the backlog until EAGAIN: never block the tick. */
+    fcntl(sv->listen_fd, F_SETFL, fcntl(sv->listen_fd, F_GETFL) | O_NONBLOCK);
     struct sockaddr_in addr;
     socklen_t alen = sizeof addr;
     getsockname(sv->listen_fd, (struct sockaddr *)&addr, &alen);
