@@ -12,8 +12,8 @@
  *     record; when that page is full, erase the OTHER page and start it. The page
  *     with the newest valid record is never erased, so a power loss at any point
  *     leaves either the old or the new blob loadable.
- * Erases alternate between the two pages: with 1 KB pages and a ~100 byte
- * settings blob that is one erase per ~9 saves, split over two pages.
+ * Erases alternate between the two pages: with 1 KB pages and the 100-byte
+ * settings blob (116-byte slot) that is one erase per 8 saves.
  *
  * Flash semantics assumed (STM32F1, PM0075): erased bytes read 0xFF, programming
  * is in 16-bit halfwords and only into erased halfwords, page erase only.
