@@ -2,7 +2,7 @@
  * leveler-rig, unchanged, closed loop against leveler-plant-server over real
  * Modbus TCP (lockstep: the plant advances 10 ms per rig tick), supervised by
  * libmodbus clients.
- *   argv: leveler-rig leveler-plant-server plant-config.ini
+ *   argv: leveler-rig leveler-plant-server plant-config.ini steady-plant-config.ini
  */
 #define _POSIX_C_SOURCE 200809L
 #include <stdarg.h>
@@ -27,6 +27,7 @@
 
 /* firmware/regmap/registers.json */
 #define IR_HEIGHT_UM 0
+#define IR_CONTROL_STATE 9
 #define IR_LAST_REFUSAL 17
 #define IR_UPTIME_MS 18
 #define HR_BAND_LOWER_UM 2
@@ -34,7 +35,7 @@
 #define REASON_BAND_ORDER 3
 #define UM_PER_IN 25400
 
-static const char *rig_binary, *plant_binary, *plant_config;
+static const char *rig_binary, *plant_binary, *plant_config, *steady_config;
 
 static modbus_t *client(int port)
 {
@@ -95,7 +96,7 @@ static void supervision_over_modbus_tcp(void **state)
 {
     (void)state;
     rig_run run;
-    assert_int_equal(harness_start_plant(&run, plant_binary, plant_config, "lockstep", "lockstep",
+    assert_int_equal(harness_start_plant(&run, plant_binary, steady_config, "lockstep", "lockstep",
                                          "[supervision]\nidle_timeout_ms = 3000\n"), 0);
     assert_int_equal(harness_start_rig(&run, rig_binary), 0);
 
@@ -129,24 +130,28 @@ static void supervision_over_modbus_tcp(void **state)
     uint32_t up_after = (uint32_t)read_i32(a, 1, IR_UPTIME_MS);
     assert_true(up_after > up_b);
 
-    /* Raise the band to 16.4 .. 16.6 in: the platform follows up into it. */
+    /* Raise the band to 16.4 .. 16.6 in: the platform follows up into it and
+     * the controller reports "in band" (state 0) there. */
     const int32_t lo = (int32_t)(16.4 * UM_PER_IN), hi = (int32_t)(16.6 * UM_PER_IN);
+    const int32_t slack = UM_PER_IN / 20; /* 0.05 in: filter and quantisation */
     write_band(a, lo, hi, 1);
     assert_int_equal(read_i32(b, 0, HR_BAND_LOWER_UM), lo);
-    int32_t h = 0;
+    int32_t h = 0, highest = 0;
+    uint16_t control_state = 99;
+    int in_band_ticks = 0;
     double until = harness_now() + 60.0;
-    while (harness_now() < until) {
+    while (harness_now() < until && in_band_ticks < 20) {
         h = read_i32(a, 1, IR_HEIGHT_UM);
-        (void)read_i32(b, 1, IR_UPTIME_MS); /* keep b active */
-        if (h >= lo - 2540)
-            break;
-        harness_sleep_ms(50);
+        highest = h > highest ? h : highest;
+        assert_int_equal(modbus_read_input_registers(b, IR_CONTROL_STATE, 1, &control_state), 1);
+        in_band_ticks = (control_state == 0 && h >= lo - slack && h <= hi + slack) ? in_band_ticks + 1 : 0;
+        harness_sleep_ms(20);
     }
     uint32_t up_end = (uint32_t)read_i32(a, 1, IR_UPTIME_MS);
-    print_message("platform %.3f in -> %.3f in after %.1f s of plant time\n", h0 / 25400.0, h / 25400.0,
-                  (up_end - up_after) / 1000.0);
-    assert_true(h >= lo - 2540); /* within 0.1 in of the new lower edge */
-    assert_true(h <= hi + 2 * UM_PER_IN);
+    print_message("platform %.3f in -> %.3f in (highest %.3f in) after %.1f s of plant time\n", h0 / 25400.0,
+                  h / 25400.0, highest / 25400.0, (up_end - up_after) / 1000.0);
+    assert_true(h0 < lo - UM_PER_IN / 2); /* it really had to move */
+    assert_int_equal(in_band_ticks, 20);
 
     /* An idle client is dropped after the idle timeout (3 s here). */
     int idle = raw_connect(run.supervision_port);
@@ -244,13 +249,14 @@ static void sigterm_leaves_outputs_safe_and_log_whole(void **state)
 
 int main(int argc, char **argv)
 {
-    if (argc != 4) {
-        fprintf(stderr, "usage: %s leveler-rig leveler-plant-server plant.ini\n", argv[0]);
+    if (argc != 5) {
+        fprintf(stderr, "usage: %s leveler-rig leveler-plant-server plant.ini steady-plant.ini\n", argv[0]);
         return 2;
     }
     rig_binary = argv[1];
     plant_binary = argv[2];
     plant_config = argv[3];
+    steady_config = argv[4];
     signal(SIGPIPE, SIG_IGN);
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(supervision_over_modbus_tcp),
