@@ -1,0 +1,8 @@
+execute_process(COMMAND ${PYTHON} ${GEN} ${JSON} --doc ${OUT} RESULT_VARIABLE rc)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "gen_regmap.py failed on ${JSON}")
+endif()
+execute_process(COMMAND ${CMAKE_COMMAND} -E compare_files ${OUT} ${DOC} RESULT_VARIABLE diff)
+if(NOT diff EQUAL 0)
+  message(FATAL_ERROR "${DOC} is out of date with ${JSON}: run `cmake --build <build> --target regmap-docs` and commit it")
+endif()
