@@ -34,6 +34,9 @@ void board_outputs_safe_early(void);
 /* After .data/.bss: HSE+PLL to 72 MHz, or HSI fallback. */
 void board_clock_init(void);
 const board_clocks *board_clock(void);
+/* True once after the clock security system moved us to HSI at run time. */
+bool board_take_clock_fault_event(void);
+void Default_Handler(void);
 
 void board_systick_init(void);
 void board_cycle_counter_init(void);
@@ -45,6 +48,7 @@ bool board_reset_was_watchdog(void); /* read once at boot, flags then cleared */
 /* hal_stm32f103.c */
 void board_hal_init(void);                 /* GPIO, ADC+DMA, USART at 19200 8E1 */
 bool board_serial_set_baud(uint32_t baud); /* false when the clock cannot make it */
+void board_serial_reclock(void);           /* re-derive the divider after a clock change */
 bool board_serial_idle(void);              /* nothing queued or on the wire */
 void board_led_set(bool lit);              /* the pin itself, owned by main.c */
 bool board_firmware_led_request(void);     /* last hal_output_set(HAL_OUT_STATUS_LED, ..) */

@@ -28,6 +28,7 @@ typedef struct {
 #define RCC_CR_HSEON (1u << 16)
 #define RCC_CR_HSERDY (1u << 17)
 #define RCC_CR_HSEBYP (1u << 18)
+#define RCC_CR_CSSON (1u << 19)
 #define RCC_CR_PLLON (1u << 24)
 #define RCC_CR_PLLRDY (1u << 25)
 #define RCC_CFGR_SW_POS 0u        /* 00 HSI, 01 HSE, 10 PLL */
@@ -37,6 +38,8 @@ typedef struct {
 #define RCC_CFGR_ADCPRE_DIV6 (2u << 14) /* ADC clock <= 14 MHz */
 #define RCC_CFGR_PLLSRC_HSE (1u << 16)  /* 0 = HSI/2 */
 #define RCC_CFGR_PLLMUL_POS 18u         /* value n-2: x9 = 7, x16 = 14 */
+#define RCC_CIR_CSSF (1u << 7)
+#define RCC_CIR_CSSC (1u << 23)
 #define RCC_APB2ENR_AFIOEN (1u << 0)
 #define RCC_APB2ENR_IOPAEN (1u << 2)
 #define RCC_APB2ENR_IOPBEN (1u << 3)

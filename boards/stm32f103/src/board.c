@@ -58,6 +58,28 @@ static bool pll_start_and_switch(uint32_t cfgr)
     return wait_set(&RCC->CFGR, 3u << RCC_CFGR_SWS_POS, RCC_CFGR_SW_PLL << RCC_CFGR_SWS_POS);
 }
 
+/* AHB /1, APB1 /2 (<= 36 MHz), APB2 /1, ADC /6 (<= 14 MHz). */
+#define CLOCK_PRESCALERS (RCC_CFGR_PPRE1_DIV2 | RCC_CFGR_ADCPRE_DIV6)
+
+/* HSI/2 x16 = 64 MHz (the F1 PLL's limit from HSI), or the bare 8 MHz HSI. */
+static void clock_use_hsi(void)
+{
+    /* Off HSE and the PLL first: PLLSRC/PLLMUL only change while the PLL is off. */
+    RCC->CFGR = CLOCK_PRESCALERS; /* SW = HSI */
+    (void)wait_set(&RCC->CFGR, 3u << RCC_CFGR_SWS_POS, 0u);
+    RCC->CR &= ~(RCC_CR_PLLON | RCC_CR_HSEON | RCC_CR_CSSON);
+    (void)wait_set(&RCC->CR, RCC_CR_PLLRDY, 0u);
+    if (pll_start_and_switch(CLOCK_PRESCALERS | ((16u - 2u) << RCC_CFGR_PLLMUL_POS))) {
+        s_clocks = (board_clocks){.sysclk_hz = 64000000u, .pclk1_hz = 32000000u, .pclk2_hz = 64000000u,
+                                  .hse_failed = true};
+        return;
+    }
+    /* Last resort: the 8 MHz HSI itself (ADC 8/6 = 1.33 MHz, still correct). */
+    RCC->CFGR = CLOCK_PRESCALERS;
+    s_clocks = (board_clocks){.sysclk_hz = BOARD_HSI_HZ, .pclk1_hz = BOARD_HSI_HZ / 2u,
+                              .pclk2_hz = BOARD_HSI_HZ, .hse_failed = true};
+}
+
 void board_clock_init(void)
 {
     s_reset_by_watchdog = (RCC->CSR & RCC_CSR_IWDGRSTF) != 0u;
@@ -66,28 +88,42 @@ void board_clock_init(void)
     /* 2 wait states + prefetch: required above 48 MHz, harmless below. */
     FLASH_IF->ACR = FLASH_ACR_PRFTBE | FLASH_ACR_LATENCY_2;
 
-    /* AHB /1, APB1 /2 (<= 36 MHz), APB2 /1, ADC /6 (<= 14 MHz). */
-    const uint32_t prescalers = RCC_CFGR_PPRE1_DIV2 | RCC_CFGR_ADCPRE_DIV6;
-
     RCC->CR |= RCC_CR_HSEON;
     if (wait_set(&RCC->CR, RCC_CR_HSERDY, RCC_CR_HSERDY) &&
-        pll_start_and_switch(prescalers | RCC_CFGR_PLLSRC_HSE | ((9u - 2u) << RCC_CFGR_PLLMUL_POS))) {
+        pll_start_and_switch(CLOCK_PRESCALERS | RCC_CFGR_PLLSRC_HSE | ((9u - 2u) << RCC_CFGR_PLLMUL_POS))) {
         s_clocks = (board_clocks){.sysclk_hz = 72000000u, .pclk1_hz = 36000000u, .pclk2_hz = 72000000u,
                                   .hse_failed = false};
+        /* Clock security: if the crystal stops later the hardware switches to
+         * HSI and raises the NMI (RM0008 7.2.7). */
+        RCC->CR |= RCC_CR_CSSON;
         return;
     }
+    clock_use_hsi();
+}
 
-    /* Fallback: HSI/2 x16 = 64 MHz (the F1 PLL's limit from HSI). */
-    RCC->CR &= ~RCC_CR_HSEON;
-    if (pll_start_and_switch(prescalers | ((16u - 2u) << RCC_CFGR_PLLMUL_POS))) {
-        s_clocks = (board_clocks){.sysclk_hz = 64000000u, .pclk1_hz = 32000000u, .pclk2_hz = 64000000u,
-                                  .hse_failed = true};
+static volatile bool s_clock_fault_event;
+
+/* CSS: HSE failed at run time. The hardware already runs us on the 8 MHz HSI
+ * with HSE and PLL off; bring the PLL back up from HSI and re-time the 1 ms
+ * SysTick and the USART divider. */
+void NMI_Handler(void)
+{
+    if (RCC->CIR & RCC_CIR_CSSF) {
+        RCC->CIR = RCC_CIR_CSSC;
+        clock_use_hsi();
+        board_systick_init();
+        board_serial_reclock();
+        s_clock_fault_event = true;
         return;
     }
-    /* Last resort: the 8 MHz HSI itself (ADC 8/6 = 1.33 MHz, still correct). */
-    RCC->CFGR = prescalers;
-    s_clocks = (board_clocks){.sysclk_hz = BOARD_HSI_HZ, .pclk1_hz = BOARD_HSI_HZ / 2u,
-                              .pclk2_hz = BOARD_HSI_HZ, .hse_failed = true};
+    Default_Handler();
+}
+
+bool board_take_clock_fault_event(void)
+{
+    bool event = s_clock_fault_event;
+    s_clock_fault_event = false;
+    return event;
 }
 
 const board_clocks *board_clock(void) { return &s_clocks; }

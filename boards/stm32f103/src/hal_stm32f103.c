@@ -183,6 +183,8 @@ static void usart_init(void)
     nvic_enable_irq(IRQ_USART1);
 }
 
+static uint32_t s_baud;
+
 bool board_serial_set_baud(uint32_t baud)
 {
     uint16_t brr = usart_brr(board_clock()->pclk2_hz, baud);
@@ -190,7 +192,16 @@ bool board_serial_set_baud(uint32_t baud)
         return false;
     }
     USART1->BRR = brr; /* only written while the line is idle (main.c checks) */
+    s_baud = baud;
     return true;
+}
+
+void board_serial_reclock(void)
+{
+    uint16_t brr = usart_brr(board_clock()->pclk2_hz, s_baud);
+    if (brr != 0u) {
+        USART1->BRR = brr;
+    }
 }
 
 bool board_serial_idle(void) { return !s_tx_active && byte_ring_used(&s_tx_ring) == 0u; }

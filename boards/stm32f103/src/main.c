@@ -118,6 +118,9 @@ int main(void)
             board_led_set(code != 0u ? blink_code_led_on(code, now_ms) : board_firmware_led_request());
             board_watchdog_refresh(); /* only while ticks keep coming */
         }
+        if (board_take_clock_fault_event()) {
+            leveler_app_report_clock_fault(true);
+        }
         leveler_modbus_rtu_poll();
         serial_follow_settings();
         settings_persist_if_due(now_ms);
