@@ -123,7 +123,6 @@ static void poll_for(uint32_t ms)
     for (uint32_t i = 0; i < ms; i++) {
         hal_stream.now_ms++;
         leveler_modbus_rtu_poll();
-        require_settings_valid();
     }
 }
 
@@ -145,6 +144,7 @@ static void stream_twice(const uint8_t *framed, size_t len, bool overstate)
         }
     }
     poll_for(2u * WORST_GAP_MS); /* close the last frame, drain the last reply */
+    require_settings_valid();
     REQUIRE(hal_stream.tx_len <= 2u * LEVELER_RTU_MAX_ADU + 2u);
     if (hal_stream.tx_len > 0 && !overstate) {
         REQUIRE(hal_stream.tx[0] == framed[0]);
