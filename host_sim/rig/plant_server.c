@@ -57,9 +57,12 @@ typedef struct {
     modbus_mapping_t *map;
 } served_plant;
 
+/* The scenario load over the interval starting at t_s; half a tick of slack
+ * against rounding, as leveler-sim does. */
 static double load_at(const plant_config *c, double t_s)
 {
-    return c->base_load_n + ((t_s >= c->step_on_s && t_s < c->step_off_s) ? c->step_load_n : 0.0);
+    double t = t_s + 0.5 * TICK_MS / 1000.0;
+    return c->base_load_n + ((t >= c->step_on_s && t < c->step_off_s) ? c->step_load_n : 0.0);
 }
 
 static void read_coils(served_plant *sp)
@@ -80,7 +83,7 @@ static void publish(served_plant *sp)
     plant_sensor_counts(&sp->pl, &sp->cfg.sensors, &sp->rng, counts);
     for (int i = 0; i < 4; i++)
         sp->map->tab_input_registers[REG_COUNTS + i] = counts[i];
-    double load = rint(sp->pl.in.load_n);
+    double load = rint(load_at(&sp->cfg, sp->time_ms / 1000.0)); /* the load cell reads the load now */
     sp->map->tab_input_registers[REG_LOAD_N] = (uint16_t)(load < 0 ? 0 : load > 65535 ? 65535 : load);
     uint32_t t = (uint32_t)sp->time_ms;
     sp->map->tab_input_registers[REG_TIME_MS] = (uint16_t)(t >> 16);

@@ -219,7 +219,7 @@ int main(int argc, char **argv)
 
     while (!stop_requested) {
         rig_sensors_scan(sensors);
-        if (cfg.run_seconds > 0 && hal_now_ms() >= cfg.run_seconds * 1000.0)
+        if (cfg.run_seconds > 0 && hal_now_ms() > cfg.run_seconds * 1000.0)
             break;
         leveler_app_tick();
         rig_hal_wanted_outputs(out);
