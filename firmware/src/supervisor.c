@@ -125,8 +125,11 @@ void leveler_supervisor_step(leveler_supervisor *sv, const leveler_settings *set
         active = (uint16_t)(active | LEVELER_FAULT_BIT(LEVELER_FAULT_RUN_TIME));
     }
 
-    /* Stall / leak: filling must show progress within the window. */
-    if (out->compressor) {
+    /* Stall / leak: filling the spring (compressor on, spring valve open) must show
+     * progress within the window. Charging only the accumulator in band is not
+     * filling: through the diaphragm's knee (106.7..112.7 psia) P3 rises far
+     * slower than any sensible threshold, and the run-time limit covers it. */
+    if (out->compressor && out->spring_valve) {
         if (!sv->stall_armed || fill_progressed(sv, set, m)) {
             stall_arm(sv, m, now_ms);
         } else if (now_ms - sv->stall_start_ms >= (uint32_t)set->stall_window_s * 1000u) {

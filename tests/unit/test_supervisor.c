@@ -180,6 +180,13 @@ static void test_stall_or_leak(void **state)
     leveler_supervisor_clear(&sv);
     step(&fill, LEVELER_MODE_AUTO);
     assert_true(out.compressor);
+    /* Charging only the accumulator (spring valve closed) is not filling. */
+    const leveler_outputs charge_acc = {true, false, false, true};
+    for (int i = 0; i < 300; i++) {
+        step(&charge_acc, LEVELER_MODE_AUTO);
+    }
+    assert_true(out.compressor);
+    assert_int_equal(sv.fault_count[2], 1);
 }
 
 static void test_stall_progress_resets_window(void **state)

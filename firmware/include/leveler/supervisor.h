@@ -12,7 +12,7 @@
  *     as a record; the cut-off itself ends with the pressure.
  *  3. compressor run time: after compressor_max_run_s of continuous running it
  *     is forced off for compressor_cooldown_s. Fault 2 latched as a record.
- *  4. stall / leak: while the compressor runs, neither P1 nor P2 rising by
+ *  4. stall / leak: while filling the spring (compressor on, spring valve open), neither P1 nor P2 rising by
  *     stall_min_rise_pa nor the height by stall_min_rise_um within
  *     stall_window_s latches fault 3 (-> rule 1).
  * Every fault is latched with its code and counted (counters saturate);
