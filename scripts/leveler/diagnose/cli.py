@@ -30,6 +30,7 @@ def parse_args(argv):
     ap.add_argument("--effects", default=",".join(fx.NAMES),
                     help="comma-separated candidates (default: all seven)")
     ap.add_argument("--jobs", type=int, default=None, help="parallel processes (default: 2)")
+    ap.add_argument("--fast", action="store_true", help="smaller fitting budget (blind-test CTest)")
     ap.add_argument("--quiet", action="store_true", help="no progress output")
     ap.add_argument("--simulator", default=None, help=argparse.SUPPRESS)   # tests: module:factory
     a = ap.parse_args(argv)
@@ -55,10 +56,11 @@ def run(a, say):
         if c not in fx.NAMES:
             raise DiagnoseInputError(f"--effects: unknown effect {c!r} (known: {', '.join(fx.NAMES)})")
     sim = model.make_simulator(a.simulator)
-    known = sim.configs()
-    if a.config not in known:
+    if hasattr(sim, "check_config"):
+        sim.check_config(a.config)          # exists and loads (file:line errors)
+    elif a.config not in sim.configs():
         raise DiagnoseInputError(f"--config: no plant config named {a.config!r} "
-                                 f"(known: {', '.join(sorted(known)) or 'none'})")
+                                 f"(known: {', '.join(sorted(sim.configs())) or 'none'})")
     if a.features:
         from . import features
         calib, holdout = features.load(a.features, a.config)
@@ -75,7 +77,8 @@ def run(a, say):
                 raise DiagnoseInputError(f"{r.path}: --mode replay needs the compressor, solenoid and "
                                          f"vent columns filled in")
     result, traces = pipeline.diagnose(a.simulator, sim, a.config, calib, holdout, mode, candidates,
-                                       a.jobs, say)
+                                       a.jobs, say,
+                                       {"starts": 4, "max_nfev": 12} if a.fast else None)
     out = os.path.abspath(a.out)
     parent = os.path.dirname(out)
     os.makedirs(parent, exist_ok=True)

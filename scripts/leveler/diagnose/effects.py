@@ -42,9 +42,9 @@ EFFECTS = (
                   "toward 1 (slow) instead of a fixed n"),
     ), "gas heat exchange with the walls (spring, pipe, accumulator)"),
     Effect("area", 2, (
-        Param("area_slope_rel_per_m", -4.0, 4.0, 0.0,
+        Param("area_slope_rel_per_m", -6.0, 6.0, 0.0,
               doc="extra relative change of effective area per metre of height"),
-        Param("area_curv_rel_per_m2", -400.0, 400.0, 0.0,
+        Param("area_curv_rel_per_m2", -200.0, 200.0, 0.0,
               doc="relative curvature of effective area against height"),
     ), "nonlinear effective area and volume against height"),
     Effect("friction", 3, (

@@ -1,0 +1,167 @@
+"""leveler-blindtest: does the diagnosis name the effect that is really there?
+
+For each case (seven effects and `none`) and seed: the C plant with the
+effect's TRUTH variant (a different functional form from the candidate the
+diagnosis fits, host_sim/plant/effects.c) at a random strength within its
+physical range runs closed loop with the firmware, on three different load
+schedules (two for calibration, one held out); sensor noise is added. The
+label is sealed in a file the diagnosis never sees; the diagnosis runs as a
+separate process on the logs alone. Then: confusion matrix, hit rate,
+held-out shrink of the correctly named cases, false effects in `none` cases.
+
+Targets (docs/diagnosis.md): >= 90 % named right, median shrink >= 70 % when
+right, no effect named in a `none` case.
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from . import effects as fx
+from . import runs
+from .model import make_simulator
+
+LB = 4.4482216152605
+CONFIG = "thesis-900lb"
+CASES = fx.NAMES + ["none"]
+NOISE_HEIGHT_M = 0.08e-3     # LVDT: about one 12-bit count of a 0.25 m span
+NOISE_PRESSURE_PA = 300.0    # transducer: about one count of a 1.38 MPa span
+IN3 = 0.0254 ** 3
+
+
+def truth_params(effect, rng):
+    """Random strength within physical ranges, in the truth variant's parameter order."""
+    u = rng.uniform
+    if effect == "thermal":      # gas-wall tau, wall-room tau, wall/gas heat capacity ratio
+        return [u(2.0, 20.0), u(60.0, 600.0), u(3.0, 30.0)]
+    if effect == "area":         # relative area deviation at 5 heights, y_ref -40..+40 mm
+        return list(u(-0.06, 0.06, 5))
+    if effect == "friction":     # LuGre: Fc, Fs extra, vs, sigma0, sigma1
+        return [u(40.0, 150.0), u(20.0, 100.0), u(1e-3, 1e-2), 1e6, u(1000.0, 3000.0)]
+    if effect == "valve_dynamics":  # opening tau, closing tau, Cd slope, outflow scale
+        return [u(0.03, 0.2), u(0.03, 0.2), u(0.1, 0.4), u(0.6, 1.5)]
+    if effect == "line_delay":   # tube volume, laminar conductance
+        return [u(5.0, 20.0) * IN3, u(5e-9, 2e-8)]
+    if effect == "leak":         # laminar K: m = K (P2^2 - Pa^2)
+        return [u(3e-17, 2e-16)]
+    if effect == "sensor_lag":   # lag 1, lag 2, height lag, P2 offset, gain error, height offset
+        return [u(0.1, 0.5), u(0.05, 0.3), u(0.0, 0.2), u(-5e3, 5e3), u(-0.03, 0.03), u(-1e-3, 1e-3)]
+    return []
+
+
+def schedules(rng):
+    """Two calibration schedules and one held-out one, all different (900 lb base)."""
+    j = lambda: rng.uniform(-1.0, 1.0)
+    base = 900.0 * LB
+    return [
+        ("cal1", 5.0 + j(), 35.0 + j(), 55.0, base + 200.0 * LB),
+        ("cal2", 4.0 + j(), 31.0 + j(), 50.0, base + 150.0 * LB),
+        ("hold", 6.0 + j(), 36.0 + j(), 56.0, base + 250.0 * LB),
+    ]
+
+
+def generate_case(sim, effect, seed, folder):
+    """Writes cal1.csv, cal2.csv, hold.csv; returns the truth parameters."""
+    rng = np.random.default_rng(seed * 1000 + CASES.index(effect))
+    params = truth_params(effect, rng)
+    for name, t_on, t_off, end, loaded in schedules(rng):
+        t = np.round(np.arange(0.0, end + 1e-9, 0.01), 2)
+        load = np.where((t >= t_on) & (t < t_off), loaded, 900.0 * LB)
+        tr = sim.generate(CONFIG, t, load, effect, params, seed)
+        sig = dict(tr.signals)
+        sig["height_m"] = sig["height_m"] + rng.normal(0.0, NOISE_HEIGHT_M, len(t))
+        for s in ("p_spring_pa", "p_pipe_pa"):
+            sig[s] = sig[s] + rng.normal(0.0, NOISE_PRESSURE_PA, len(t))
+        sig["p_acc_pa"] = np.full(len(t), np.nan)
+        runs.write_run(os.path.join(folder, f"{name}.csv"), t, sig, load, tr.commands, CONFIG, "rig")
+    return params
+
+
+def diagnose_blind(folder, out, extra):
+    """The diagnosis as its own process, on the logs only."""
+    cmd = [sys.executable, "-m", "leveler.diagnose", "--config", CONFIG,
+           "--run", os.path.join(folder, "cal1.csv"), "--run", os.path.join(folder, "cal2.csv"),
+           "--holdout", os.path.join(folder, "hold.csv"), "--out", out, "--quiet"] + extra
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    if p.returncode != 0:
+        raise RuntimeError(f"diagnosis failed ({p.returncode}): {p.stderr.strip()}")
+    with open(os.path.join(out, "diagnosis.json")) as fh:
+        return json.load(fh)
+
+
+def confusion(results):
+    lines = ["truth \\ named  " + " ".join(f"{c[:7]:>7}" for c in CASES)]
+    for t in CASES:
+        row = [sum(1 for r in results if r["truth"] == t and r["named"] == c) for c in CASES]
+        lines.append(f"{t:<15}" + " ".join(f"{v:>7}" for v in row))
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="leveler-blindtest", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seeds", type=int, default=5, help="seeds per case (default 5)")
+    ap.add_argument("--first-seed", type=int, default=1)
+    ap.add_argument("--cases", default=",".join(CASES), help="comma-separated subset of cases")
+    ap.add_argument("--fast", action="store_true", help="smaller fitting budget (the CTest variant)")
+    ap.add_argument("--keep", metavar="DIR", help="keep logs, sealed labels and diagnoses here")
+    ap.add_argument("--json", metavar="FILE", help="write all results here")
+    ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
+    a = ap.parse_args(argv)
+    cases = [c for c in a.cases.split(",") if c]
+    for c in cases:
+        if c not in CASES:
+            ap.error(f"unknown case {c!r} (known: {', '.join(CASES)})")
+    sim = make_simulator()
+    extra = ["--fast"] if a.fast else []
+    top = a.keep or tempfile.mkdtemp(prefix="leveler-blindtest-")
+    os.makedirs(top, exist_ok=True)
+    results = []
+    t_all = time.perf_counter()
+    for seed in range(a.first_seed, a.first_seed + a.seeds):
+        for case in cases:
+            folder = os.path.join(top, f"seed{seed}-{len(results):02d}")
+            logs = os.path.join(folder, "logs")
+            os.makedirs(logs, exist_ok=True)
+            params = generate_case(sim, case, seed, logs)
+            # the sealed label: beside the logs, never passed to the diagnosis
+            with open(os.path.join(folder, "label.sealed.json"), "w") as fh:
+                json.dump({"effect": case, "truth_params": params, "seed": seed}, fh)
+            t0 = time.perf_counter()
+            d = diagnose_blind(logs, os.path.join(folder, "diagnosis"), extra)
+            r = {"seed": seed, "truth": case, "named": d["effect"], "shrink_pct": d["shrink_pct"],
+                 "margin_pct": d["margin_pct"], "seconds": time.perf_counter() - t0,
+                 "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]]}
+            results.append(r)
+            ok = "ok " if r["named"] == case else "MISS"
+            print(f"{ok} seed {seed} truth {case:<15} named {r['named']:<15} held-out shrink "
+                  f"{r['shrink_pct']:6.1f}%  ({r['seconds']:.0f} s)  top: {r['ranking'][:3]}", flush=True)
+    print()
+    print(confusion(results))
+    right = [r for r in results if r["named"] == r["truth"]]
+    eff_right = [r["shrink_pct"] for r in right if r["truth"] != "none"]
+    none_cases = [r for r in results if r["truth"] == "none"]
+    false_named = [r for r in none_cases if r["named"] != "none"]
+    hit = 100.0 * len(right) / max(len(results), 1)
+    med = float(np.median(eff_right)) if eff_right else float("nan")
+    print(f"\nright effect named: {len(right)}/{len(results)} = {hit:.0f}% (target >= 90%)")
+    print(f"median held-out shrink when right: {med:.1f}% (target >= 70%)")
+    print(f"false effects in none cases: {len(false_named)}/{len(none_cases)} (target 0)")
+    print(f"total {time.perf_counter() - t_all:.0f} s; logs and diagnoses in {top}")
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump({"results": results, "hit_pct": hit, "median_shrink_pct": med,
+                       "false_in_none": len(false_named)}, fh, indent=2)
+    if a.check:
+        ok = hit >= 90.0 and (not eff_right or med >= 70.0) and not false_named
+        return 0 if ok else 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,123 @@
+"""The project's C plant through ctypes (tests/diagnose/diag_shim.c, host_sim/plant/effects.c).
+
+The shared library `libleveler_diag.so` is built without sanitizers by
+tests/diagnose/CMakeLists.txt. It is looked up in $LEVELER_DIAG_LIB, then in
+the project's build folders (build/sim, build/bench, build/test).
+"""
+import ctypes
+import glob
+import os
+
+import numpy as np
+
+from . import effects as fx
+from .errors import DiagnoseInputError
+from .model import CLOSED_LOOP, Simulator, Trace
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
+CONFIG_DIR = os.path.join(ROOT, "host_sim", "configs")
+ABI = 1
+MAX_PARAMS = 8
+TRUTH = 100
+SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
+COMMANDS = ("compressor", "solenoid", "vent", "acc_valve")
+
+
+def find_library():
+    env = os.environ.get("LEVELER_DIAG_LIB")
+    if env:
+        if not os.path.isfile(env):
+            raise DiagnoseInputError(f"LEVELER_DIAG_LIB={env}: no such file")
+        return env
+    cands = []
+    for b in ("build/sim", "build/bench", "build/test", "build/*"):
+        cands += glob.glob(os.path.join(ROOT, b, "tests", "diagnose", "libleveler_diag.so"))
+    cands = [c for c in cands if os.path.isfile(c)]
+    if not cands:
+        raise DiagnoseInputError("libleveler_diag.so not found: build it with "
+                                 "`cmake --build build/sim --target leveler_diag` or set LEVELER_DIAG_LIB")
+    return max(cands, key=os.path.getmtime)
+
+
+def config_path(name):
+    if os.path.sep in name or name.endswith(".ini"):
+        return os.path.abspath(name)
+    return os.path.join(CONFIG_DIR, name + ".ini")
+
+
+def _dptr(a):
+    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+
+def _iptr(a):
+    return a.ctypes.data_as(ctypes.POINTER(ctypes.c_int32))
+
+
+class CPlant(Simulator):
+    def __init__(self, lib_path=None):
+        self.lib = ctypes.CDLL(lib_path or find_library())
+        if self.lib.diag_abi_version() != ABI:
+            raise DiagnoseInputError("libleveler_diag.so has another ABI version; rebuild it")
+        f = self.lib.diag_simulate
+        f.restype = ctypes.c_int
+        f.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double),
+                      ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32), ctypes.c_int,
+                      ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
+                      ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32),
+                      ctypes.c_char_p, ctypes.c_int]
+        self.lib.diag_config_check.restype = ctypes.c_int
+        self.lib.diag_config_check.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_int]
+
+    def configs(self):
+        return sorted(os.path.splitext(os.path.basename(p))[0]
+                      for p in glob.glob(os.path.join(CONFIG_DIR, "*.ini")))
+
+    def check_config(self, name):
+        path = config_path(name)
+        if not os.path.isfile(path):
+            raise DiagnoseInputError(f"--config: no plant config {name!r} ({path} does not exist; "
+                                     f"known: {', '.join(self.configs())})")
+        err = ctypes.create_string_buffer(512)
+        if self.lib.diag_config_check(path.encode(), err, len(err)) != 0:
+            raise DiagnoseInputError(err.value.decode(errors="replace"))
+
+    def _call(self, config, t_s, load_n, commands, kind, values, init):
+        n = len(t_s)
+        t = np.ascontiguousarray(t_s, dtype=np.float64)
+        load = np.ascontiguousarray(load_n, dtype=np.float64)
+        p = np.zeros(MAX_PARAMS)
+        p[:len(values)] = values
+        ini = np.ascontiguousarray(init, dtype=np.float64)
+        out = np.empty((n, 4))
+        cmd_out = np.empty((n, 4), dtype=np.int32)
+        cmd = None
+        if commands is not None:
+            cmd = np.ascontiguousarray(np.stack([commands.get(c, np.zeros(n)) for c in COMMANDS], axis=1),
+                                       dtype=np.int32)
+        err = ctypes.create_string_buffer(512)
+        rc = self.lib.diag_simulate(config_path(config).encode(), n, _dptr(t), _dptr(load),
+                                    None if cmd is None else _iptr(cmd), kind, _dptr(p), _dptr(ini),
+                                    _dptr(out), _iptr(cmd_out), err, len(err))
+        if rc != 0:
+            raise RuntimeError(f"C plant: {err.value.decode(errors='replace')}")
+        return Trace(t, {s: out[:, i].copy() for i, s in enumerate(SIGNALS)},
+                     {c: cmd_out[:, i].copy() for i, c in enumerate(COMMANDS)})
+
+    def simulate(self, config, run, effect, params, mode):
+        if effect:
+            e = fx.get(effect)
+            values = [params.get(q.name, q.nominal) for q in e.params]
+            kind = e.effect_id
+        else:
+            values, kind = [], 0
+        s = run.signals
+        init = [s["height_m"][:20].mean() if np.isfinite(s["height_m"][:20]).all() else np.nan,
+                np.nanmean(s["p_spring_pa"][:20]) if np.isfinite(s["p_spring_pa"][:20]).any() else np.nan,
+                np.nanmean(s["p_pipe_pa"][:20]) if np.isfinite(s["p_pipe_pa"][:20]).any() else np.nan]
+        commands = None if mode == CLOSED_LOOP else run.commands
+        return self._call(config, run.t_s, run.load_n, commands, kind, values, init)
+
+    def generate(self, config, t_s, load_n, truth_effect, truth_params, seed=0):
+        """Closed loop with a truth variant: truth_params is the list of the variant's values."""
+        kind = 0 if truth_effect in (None, "none") else TRUTH + fx.get(truth_effect).effect_id
+        return self._call(config, t_s, load_n, None, kind, list(truth_params or []), [np.nan] * 3)
