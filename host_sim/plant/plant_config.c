@@ -535,7 +535,7 @@ void plant_config_defaults(plant_config *c)
     c->step_on_s = 5.0;
     c->step_off_s = 35.0;
     c->end_s = 55.0;
-    c->substeps_per_tick = 10;
+    c->substeps_per_tick = 1; /* convergence study: tests/sim/test_acceptance.py */
     snprintf(c->name, sizeof c->name, "thesis-900lb");
 }
 
