@@ -30,6 +30,7 @@
 #define IR_CONTROL_STATE 9
 #define IR_LAST_REFUSAL 17
 #define IR_UPTIME_MS 18
+#define IR_TICK_OVERRUNS 24
 #define HR_BAND_LOWER_UM 2
 #define HR_BAND_UPPER_UM 4
 #define REASON_BAND_ORDER 3
@@ -247,6 +248,59 @@ static void sigterm_leaves_outputs_safe_and_log_whole(void **state)
     harness_stop(&run);
 }
 
+/* Real time: the rig on CLOCK_MONOTONIC deadlines against a plant advancing
+ * with the wall clock. Ticks are 10 ms apart; a process held up for 200 ms
+ * counts the missed deadlines in tick_overruns and skips ahead (no burst). */
+static void realtime_ticks_and_overruns(void **state)
+{
+    (void)state;
+    rig_run run;
+    assert_int_equal(harness_start_plant(&run, plant_binary, steady_config, "realtime", "monotonic", NULL), 0);
+    assert_int_equal(harness_start_rig(&run, rig_binary), 0);
+    modbus_t *a = client(run.supervision_port);
+    harness_sleep_ms(1000);
+    uint32_t before = (uint32_t)read_i32(a, 1, IR_TICK_OVERRUNS);
+    assert_int_equal(kill(run.rig_pid, SIGSTOP), 0);
+    harness_sleep_ms(200);
+    assert_int_equal(kill(run.rig_pid, SIGCONT), 0);
+    harness_sleep_ms(300);
+    uint32_t after = (uint32_t)read_i32(a, 1, IR_TICK_OVERRUNS);
+    print_message("tick_overruns %u -> %u across a 200 ms stop\n", before, after);
+    assert_true(after - before >= 15 && after - before <= 40);
+    modbus_close(a);
+    modbus_free(a);
+
+    assert_int_equal(kill(run.rig_pid, SIGTERM), 0);
+    assert_int_equal(harness_wait(run.rig_pid, 10.0, NULL), 0);
+    run.rig_pid = -1;
+
+    /* The log's rows: 10 ms apart (median), one gap for the stop, no burst after it. */
+    FILE *f = fopen(run.log_path, "r");
+    assert_non_null(f);
+    char line[256];
+    double prev = -1, deltas[4096];
+    int n = 0, short_gaps = 0;
+    while (fgets(line, sizeof line, f) && n < 4096) {
+        if (line[0] < '0' || line[0] > '9')
+            continue;
+        double t = atof(line);
+        if (prev >= 0) {
+            deltas[n++] = t - prev;
+            short_gaps += (t - prev) < 0.005;
+        }
+        prev = t;
+    }
+    fclose(f);
+    assert_true(n > 100);
+    int near_10ms = 0;
+    for (int i = 0; i < n; i++)
+        near_10ms += deltas[i] > 0.0085 && deltas[i] < 0.0115;
+    print_message("%d intervals, %d within 10 +- 1.5 ms, %d under 5 ms\n", n, near_10ms, short_gaps);
+    assert_true(near_10ms > n / 2);
+    assert_true(short_gaps < n / 10);
+    harness_stop(&run);
+}
+
 int main(int argc, char **argv)
 {
     if (argc != 5) {
@@ -262,6 +316,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(supervision_over_modbus_tcp),
         cmocka_unit_test(read_only_refuses_writes),
         cmocka_unit_test(sigterm_leaves_outputs_safe_and_log_whole),
+        cmocka_unit_test(realtime_ticks_and_overruns),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,0 +1,126 @@
+/* leveler-rig configuration: the shipped example parses to what it says, and
+ * every error names the file, the line, the [section] key and the range. */
+#define _POSIX_C_SOURCE 200809L
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <setjmp.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "rig_config.h"
+
+static const char *example_path;
+static char tmp_path[64];
+
+static int load_text(const char *text, rig_config *cfg, char *err, size_t len)
+{
+    snprintf(tmp_path, sizeof tmp_path, "/tmp/leveler-rig-config-XXXXXX");
+    int fd = mkstemp(tmp_path);
+    assert_true(fd >= 0);
+    assert_int_equal(write(fd, text, strlen(text)), (ssize_t)strlen(text));
+    close(fd);
+    rig_config_defaults(cfg);
+    int rc = rig_config_load(tmp_path, cfg, err, len);
+    unlink(tmp_path);
+    return rc;
+}
+
+#define OUTPUTS "[output.compressor]\nline = 1\n[output.spring_valve]\nline = 2\n" \
+                "[output.vent_valve]\nline = 3\n[output.acc_valve]\nline = 4\n[log]\nload_n = 4000\n"
+
+static void example_config_parses(void **state)
+{
+    (void)state;
+    rig_config cfg;
+    char err[512] = "";
+    rig_config_defaults(&cfg);
+    int rc = rig_config_load(example_path, &cfg, err, sizeof err);
+    if (rc != 0)
+        print_error("%s\n", err);
+    assert_int_equal(rc, 0);
+    assert_int_equal(cfg.clock, RIG_CLOCK_MONOTONIC);
+    assert_int_equal(cfg.transport, RIG_TRANSPORT_RTU);
+    assert_int_equal(cfg.baud, 115200);
+    assert_int_equal(cfg.outputs, RIG_OUTPUTS_GPIOD);
+    assert_int_equal(cfg.pin[HAL_OUT_COMPRESSOR].line, 17);
+    assert_true(cfg.pin[HAL_OUT_COMPRESSOR].active_low);
+    assert_true(cfg.pin[HAL_OUT_STATUS_LED].configured);
+    assert_string_equal(cfg.supervision_address, "127.0.0.1");
+    assert_true(fabs(cfg.log_load_n - 4003.4) < 1e-9);
+    /* 4-20 mA line: raw 2000 -> 0 counts, 10000 -> 4095, midway -> 2048 (rounded) */
+    assert_true(cfg.channel[HAL_ADC_HEIGHT].enabled);
+    assert_int_equal(cfg.channel[HAL_ADC_HEIGHT].raw_lo, 2000);
+}
+
+static void expect_error(const char *text, const char *want)
+{
+    rig_config cfg;
+    char err[512] = "";
+    assert_int_equal(load_text(text, &cfg, err, sizeof err), -1);
+    char full[600];
+    snprintf(full, sizeof full, "%s:%s", tmp_path, want);
+    if (strstr(err, want) == NULL || strncmp(err, tmp_path, strlen(tmp_path)) != 0)
+        fail_msg("got '%s', want '%s'", err, full);
+}
+
+static void errors_name_file_line_key_and_range(void **state)
+{
+    (void)state;
+    expect_error("[sensors]\ntransport = tcp\nbaud = 50\n" OUTPUTS,
+                 ":3: [sensors] baud: 50 is out of range (allowed 300..4000000)");
+    expect_error("[sensors]\nparity = X\n" OUTPUTS, ":2: [sensors] parity: 'X' is not one of N, E, O");
+    expect_error("; comment\n\n[sensor.height]\nregister = 70000\n" OUTPUTS,
+                 ":4: [sensor.height] register: 70000 is out of range (allowed 0..65535)");
+    expect_error("[sensor.p_spring]\ncounts_hi = 5000\n" OUTPUTS,
+                 ":2: [sensor.p_spring] counts_hi: 5000 is out of range (allowed 0..4095)");
+    expect_error(OUTPUTS "[supervision]\nread_only = maybe\n",
+                 ":12: [supervision] read_only: 'maybe' is not a boolean");
+    expect_error("[rig]\ncolour = blue\n" OUTPUTS, ":2: [rig] colour: unknown key");
+    expect_error("[pump]\nspeed = 3\n" OUTPUTS, ":2: [pump] speed: unknown section");
+    expect_error("[output.heater]\nline = 3\n" OUTPUTS, ":2: [output.heater] line: unknown output");
+    expect_error("[sensors]\ntimeout_ms = 12x\n" OUTPUTS, ":2: [sensors] timeout_ms: '12x' is not an integer");
+    expect_error("[rig]\nthis line is not ini\n" OUTPUTS, ":2: syntax error");
+}
+
+static void whole_file_checks(void **state)
+{
+    (void)state;
+    expect_error("[output.compressor]\nline = 1\n[log]\nload_n = 1\n", " [output.spring_valve]: missing");
+    expect_error("[rig]\nclock = lockstep\n" OUTPUTS, " [rig] clock: lockstep needs [outputs] backend = modbus");
+    expect_error("[sensor.height]\nraw_lo = 5\nraw_hi = 5\n" OUTPUTS, " [sensor.height] raw_lo, raw_hi: must differ");
+    expect_error("[log]\npath = /tmp/x.csv\n[output.compressor]\nline = 1\n[output.spring_valve]\nline = 2\n"
+                 "[output.vent_valve]\nline = 3\n[output.acc_valve]\nline = 4\n",
+                 " [log] load_n: required when there is no [sensor.load]");
+}
+
+static void missing_file_is_named(void **state)
+{
+    (void)state;
+    rig_config cfg;
+    char err[512];
+    rig_config_defaults(&cfg);
+    assert_int_equal(rig_config_load("/nonexistent/rig.ini", &cfg, err, sizeof err), -1);
+    assert_non_null(strstr(err, "/nonexistent/rig.ini"));
+}
+
+int main(int argc, char **argv)
+{
+    if (argc != 2) {
+        fprintf(stderr, "usage: %s boards/linux-rig/rig.ini\n", argv[0]);
+        return 2;
+    }
+    example_path = argv[1];
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(example_config_parses),
+        cmocka_unit_test(errors_name_file_line_key_and_range),
+        cmocka_unit_test(whole_file_checks),
+        cmocka_unit_test(missing_file_is_named),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
