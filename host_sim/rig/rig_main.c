@@ -27,6 +27,7 @@
 
 #include "leveler/app.h"
 #include "leveler/regmap.h"
+#include "leveler/regmap_addr.h"
 #include "output_backend.h"
 #include "rig_config.h"
 #include "rig_hal.h"
@@ -34,11 +35,13 @@
 #include "sensor_module.h"
 #include "supervision.h"
 
-/* Input registers of the measurements (firmware/regmap/registers.json):
- * height_um 0, p_spring_pa 2, p_pipe_pa 4, p_acc_pa 6 (int32, high word
- * first), sensor_fault_bits 8. */
-#define REG_MEASUREMENTS 0u
-#define REG_MEASUREMENT_COUNT 9u
+/* The measurements block of the input registers: height, P2, P1, P3 (int32,
+ * high word first) then sensor_fault_bits; one read per logged tick. */
+#define REG_MEASUREMENTS LEVELER_IR_HEIGHT_UM
+#define REG_MEASUREMENT_COUNT (LEVELER_IR_SENSOR_FAULT_BITS - LEVELER_IR_HEIGHT_UM + 1u)
+_Static_assert(LEVELER_IR_P_SPRING_PA == LEVELER_IR_HEIGHT_UM + 2 && LEVELER_IR_P_PIPE_PA == LEVELER_IR_HEIGHT_UM + 4 &&
+                   LEVELER_IR_P_ACC_PA == LEVELER_IR_HEIGHT_UM + 6,
+               "log_tick() expects height, P2, P1, P3 in consecutive int32 pairs");
 
 #define NS_PER_MS 1000000LL
 #define TICK_NS ((long long)LEVELER_TICK_MS * NS_PER_MS)
@@ -80,7 +83,7 @@ static void log_tick(runlog *log, const rig_config *cfg, rig_sensors *sensors, c
     uint16_t m[REG_MEASUREMENT_COUNT];
     if (leveler_regs_read(LEVELER_TABLE_INPUT_REGISTER, REG_MEASUREMENTS, REG_MEASUREMENT_COUNT, m) != LEVELER_REG_OK)
         return;
-    uint16_t faulty = m[8];
+    uint16_t faulty = m[LEVELER_IR_SENSOR_FAULT_BITS - REG_MEASUREMENTS];
     double p[3];
     for (int i = 0; i < 3; i++) {
         int ch = HAL_ADC_P_SPRING + i;

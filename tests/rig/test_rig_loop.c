@@ -25,15 +25,17 @@
 
 #include "rig_harness.h"
 
-/* firmware/regmap/registers.json */
-#define IR_HEIGHT_UM 0
-#define IR_CONTROL_STATE 9
-#define IR_LAST_REFUSAL 17
-#define IR_UPTIME_MS 18
-#define IR_TICK_OVERRUNS 24
-#define HR_BAND_LOWER_UM 2
-#define HR_BAND_UPPER_UM 4
-#define REASON_BAND_ORDER 3
+#include "leveler/regmap.h"
+#include "leveler/regmap_addr.h" /* generated from firmware/regmap/registers.json */
+
+#define IR_HEIGHT_UM LEVELER_IR_HEIGHT_UM
+#define IR_CONTROL_STATE LEVELER_IR_CONTROL_STATE
+#define IR_LAST_REFUSAL LEVELER_IR_LAST_REFUSAL_REASON
+#define IR_UPTIME_MS LEVELER_IR_UPTIME_MS
+#define IR_TICK_OVERRUNS LEVELER_IR_TICK_OVERRUNS
+#define HR_BAND_LOWER_UM LEVELER_HR_BAND_LOWER_UM
+#define HR_BAND_UPPER_UM LEVELER_HR_BAND_UPPER_UM
+#define REASON_BAND_ORDER LEVELER_REASON_BAND_ORDER
 #define UM_PER_IN 25400
 
 static const char *rig_binary, *plant_binary, *plant_config, *steady_config;
@@ -145,7 +147,7 @@ static void supervision_over_modbus_tcp(void **state)
         h = read_i32(a, 1, IR_HEIGHT_UM);
         highest = h > highest ? h : highest;
         assert_int_equal(modbus_read_input_registers(b, IR_CONTROL_STATE, 1, &control_state), 1);
-        in_band_ticks = (control_state == 0 && h >= lo - slack && h <= hi + slack) ? in_band_ticks + 1 : 0;
+        in_band_ticks = (control_state == LEVELER_IR_CONTROL_STATE_IN_BAND && h >= lo - slack && h <= hi + slack) ? in_band_ticks + 1 : 0;
         harness_sleep_ms(20);
     }
     uint32_t up_end = (uint32_t)read_i32(a, 1, IR_UPTIME_MS);
