@@ -4,7 +4,7 @@
  * Parameters by kind (SI; "off" = the value that gives the nominal plant):
  *  candidates
  *   1 thermal   p0 tau_thermal_s (0 = off: fixed polytropic n)
- *   2 area      p0 a1 rel/m, p1 a2 rel/m^2 (0, 0 = off)
+ *   2 area      p0 a1 rel/m, p1 a2 rel/m^2 (0, 0 = off), held flat past +-50 mm
  *   3 friction  p0 coulomb N, p1 stribeck N, p2 stribeck velocity m/s
  *   4 valve     p0 open delay s, p1 close delay s, p2 ISO 6358 b (0 = eq. 8), p3 outflow C scale
  *   5 line      p0 transport delay s, p1 conductance scale of the spring path (1 = off)
@@ -135,8 +135,11 @@ static double two_way(const plant *pl, double cda_fwd, double cda_back, double p
 static double area_scale(const plant_fx *f, double y)
 {
     double d = y - f->y_ref_m;
-    if (is_kind(f, PLANT_FX_AREA))
+    if (is_kind(f, PLANT_FX_AREA)) {
+        /* the rolling lobe's area stops changing past +-50 mm */
+        d = fmax(-0.05, fmin(0.05, d));
         return 1.0 + f->fx.p[0] * d + f->fx.p[1] * d * d;
+    }
     /* truth: piecewise linear over knots y_ref + (-2..2) * 20 mm, flat outside */
     double u = d / 0.020 + 2.0;
     if (u <= 0.0)

@@ -78,7 +78,7 @@ def run(a, say):
                                          f"vent columns filled in")
     result, traces = pipeline.diagnose(a.simulator, sim, a.config, calib, holdout, mode, candidates,
                                        a.jobs, say,
-                                       {"starts": 4, "max_nfev": 12} if a.fast else None)
+                                       {"starts": 8, "max_nfev": 15, "polish": 1} if a.fast else None)
     out = os.path.abspath(a.out)
     parent = os.path.dirname(out)
     os.makedirs(parent, exist_ok=True)

@@ -53,6 +53,26 @@ def _iptr(a):
     return a.ctypes.data_as(ctypes.POINTER(ctypes.c_int32))
 
 
+def initial_state(run):
+    """Height, P2, P1 at the start: averaged over the quiet start of the run
+    (before the first load change or actuator switch, at most 2 s), so sensor
+    noise does not become an initial-state error."""
+    t = run.t_s
+    end = np.searchsorted(t, t[0] + 2.0)
+    changes = [np.flatnonzero(np.abs(np.diff(run.load_n)) > 1.0)]
+    changes += [np.flatnonzero(np.diff(v) != 0) for v in run.commands.values()]
+    for c in changes:
+        if c.size:
+            end = min(end, int(c[0]) + 1)
+    end = max(end, 1)
+    out = []
+    for sig in ("height_m", "p_spring_pa", "p_pipe_pa"):
+        v = run.signals[sig][:end]
+        v = v[np.isfinite(v)]
+        out.append(float(np.mean(v)) if v.size else np.nan)
+    return out
+
+
 class CPlant(Simulator):
     def __init__(self, lib_path=None):
         self.lib = ctypes.CDLL(lib_path or find_library())
@@ -110,10 +130,7 @@ class CPlant(Simulator):
             kind = e.effect_id
         else:
             values, kind = [], 0
-        s = run.signals
-        init = [s["height_m"][:20].mean() if np.isfinite(s["height_m"][:20]).all() else np.nan,
-                np.nanmean(s["p_spring_pa"][:20]) if np.isfinite(s["p_spring_pa"][:20]).any() else np.nan,
-                np.nanmean(s["p_pipe_pa"][:20]) if np.isfinite(s["p_pipe_pa"][:20]).any() else np.nan]
+        init = initial_state(run)
         commands = None if mode == CLOSED_LOOP else run.commands
         return self._call(config, run.t_s, run.load_n, commands, kind, values, init)
 

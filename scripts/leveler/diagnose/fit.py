@@ -86,7 +86,7 @@ def cost_to_gap(r, nruns):
     return float(np.sqrt(np.sum(r ** 2) / max(nruns, 1)))
 
 
-def fit_effect(problem, effect, starts=6, max_nfev=40, seed=0):
+def fit_effect(problem, effect, starts=16, max_nfev=40, seed=0, polish=3):
     """Least-squares fit of one effect. Returns dict with params, cost, evaluations."""
     d = len(effect.params)
     sampler = qmc.Halton(d, scramble=True, seed=seed)
@@ -97,7 +97,7 @@ def fit_effect(problem, effect, starts=6, max_nfev=40, seed=0):
         costs.append(float(np.sum(r ** 2)))
     order = np.argsort(costs)
     best_u, best_cost = cand[order[0]], costs[order[0]]
-    for k in order[:2]:
+    for k in order[:polish]:
         fun = lambda u: problem.residual_vector(effect.name, from_unit(effect, u))
         try:
             res = least_squares(fun, cand[k], bounds=(np.zeros(d), np.ones(d)), diff_step=0.02,
