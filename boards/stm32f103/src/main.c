@@ -62,12 +62,12 @@ static void serial_follow_settings(void)
 {
     uint32_t baud = (uint32_t)leveler_settings_current()->modbus_baud_div100 * 100u;
     if (baud != s_baud && board_serial_idle()) {
-        if (board_serial_set_baud(baud)) {
-            s_baud = baud;
-            leveler_modbus_rtu_init(); /* inter-frame timing follows the new rate */
-        } else {
-            s_baud = baud; /* cannot be made on this clock: keep the old divider */
-        }
+        /* A rate this clock cannot make keeps the old divider; either way the
+         * setting is taken as seen. The RTU slave's frame gap follows the
+         * settings on every poll, so it needs no reset here (a reset would
+         * drop a reply still going out). */
+        (void)board_serial_set_baud(baud);
+        s_baud = baud;
     }
 }
 
