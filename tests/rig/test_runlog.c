@@ -181,6 +181,7 @@ static void sigterm_never_tears_a_line(void **state)
     char path[300];
     snprintf(path, sizeof path, "%s/kill.csv", dir);
     for (int round = 0; round < 5; round++) {
+        unlink(path);
         pid_t pid = fork();
         assert_true(pid >= 0);
         if (pid == 0) {
@@ -195,7 +196,14 @@ static void sigterm_never_tears_a_line(void **state)
                     _exit(4);
             }
         }
-        struct timespec ts = {0, 20000000L + round * 7000000L};
+        /* Wait (bounded) until rows are being written, then let it run a
+         * little more so the kill lands at a different point each round. */
+        struct stat st;
+        for (int waited = 0; waited < 5000 && !(stat(path, &st) == 0 && st.st_size > 4096); waited++) {
+            struct timespec ms = {0, 1000000L};
+            nanosleep(&ms, NULL);
+        }
+        struct timespec ts = {0, 1000000L + round * 3000000L};
         nanosleep(&ts, NULL);
         kill(pid, SIGTERM); /* default action: killed between or inside write() calls */
         int status;
