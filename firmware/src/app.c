@@ -78,9 +78,12 @@ void leveler_app_init(void)
     leveler_sensors_init(&g_sensors, g_start_ms);
     leveler_supervisor_init(&g_supervisor);
     memset(&g_command, 0, sizeof(g_command));
-    bool clock_fault = g_status.clock_fault; /* a hardware fact the board may report before init */
+    /* hardware facts the board may report before init */
+    bool clock_fault = g_status.clock_fault;
+    bool watchdog_reset = g_status.watchdog_reset;
     memset(&g_status, 0, sizeof(g_status));
     g_status.clock_fault = clock_fault;
+    g_status.watchdog_reset = watchdog_reset;
     g_status.firmware_version = LEVELER_FIRMWARE_VERSION;
     g_status.control_state = LEVELER_STATE_SAFE;
     g_status.outputs_safe = true;
@@ -164,4 +167,9 @@ void leveler_app_report_tick_cycles(uint32_t cycles)
 void leveler_app_report_clock_fault(bool hse_failed)
 {
     g_status.clock_fault = hse_failed;
+}
+
+void leveler_app_report_reset_cause(bool watchdog)
+{
+    g_status.watchdog_reset = watchdog;
 }

@@ -142,12 +142,18 @@ static void test_target_reports_and_clock_wrap(void **state)
     fake_hal_reset();
     fake_hal_set_time_ms(UINT32_MAX - 50u); /* the clock wraps during the run */
     leveler_app_report_clock_fault(true);
+    leveler_app_report_reset_cause(true);
     leveler_app_init();
     set_sensors(MID_BAND_UM, P_NOMINAL_PA, P_NOMINAL_PA, P_NOMINAL_PA);
     run_ticks(30);
     assert_int_equal(leveler_app_status()->uptime_ms, 300);
     assert_true(leveler_app_status()->sensors_valid);
     assert_true(leveler_app_status()->clock_fault);
+    assert_true(leveler_app_status()->watchdog_reset);
+    uint16_t bits[2] = {0, 0};
+    assert_int_equal(leveler_regs_read(LEVELER_TABLE_DISCRETE_INPUT, LEVELER_DI_CLOCK_FAULT, 2, bits), LEVELER_REG_OK);
+    assert_int_equal(bits[0], 1);
+    assert_int_equal(bits[1], 1);
     leveler_app_report_tick_overrun();
     leveler_app_report_tick_cycles(500);
     leveler_app_report_tick_cycles(200);

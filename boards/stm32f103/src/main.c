@@ -90,6 +90,7 @@ int main(void)
 
     leveler_app_init();
     leveler_app_report_clock_fault(board_clock()->hse_failed);
+    leveler_app_report_reset_cause(board_reset_was_watchdog());
     settings_restore();
     s_baud = 19200u;
     serial_follow_settings();

@@ -28,5 +28,6 @@ void leveler_app_tick(void);
 void leveler_app_report_tick_overrun(void);            /* rig: a deadline was missed */
 void leveler_app_report_tick_cycles(uint32_t cycles);  /* board: DWT cycles of one tick; worst kept */
 void leveler_app_report_clock_fault(bool hse_failed);  /* board: fell back to HSI */
+void leveler_app_report_reset_cause(bool watchdog);     /* board: the last reset came from the watchdog */
 
 #endif /* LEVELER_APP_H */

@@ -62,6 +62,7 @@ typedef struct {
     bool fault_latched;
     bool sensors_valid;
     bool clock_fault;
+    bool watchdog_reset;
 } leveler_status;
 
 typedef struct {
