@@ -173,6 +173,8 @@ static void fx_derivatives(const plant_fx *f, const double *x, double *dx)
     switch (f->fx.kind) {
     case PLANT_FX_THERMAL:
     case PLANT_FX_TRUTH + PLANT_FX_THERMAL: {
+        if (!(q[0] > 0.0))
+            return; /* off: the fixed polytropic exponent */
         /* Energy balance of the gas in spring and pipe (ideal gas, U = P V/(k-1)):
          *   dP/dt = Z k (R T_src m - P dV/dt)/V + P (Tw - T)/(T tau)
          *   dT/dt = T (dP/P + dV/V) - m R T^2/(P V)
@@ -215,6 +217,8 @@ static void fx_derivatives(const plant_fx *f, const double *x, double *dx)
         /* Coulomb + Stribeck; below 0.1 mm/s the guide sticks up to Fc + Fs. */
         double f_other = dx[PLANT_X_VEL] * pl->mass_kg;
         double fs = q[0] + q[1];
+        if (!(fs > 0.0))
+            return; /* off */
         double ff;
         if (fabs(vel) < 1e-4) {
             ff = -fmax(-fs, fmin(fs, f_other)) - 2.0e5 * vel;
@@ -262,7 +266,8 @@ static void fx_derivatives(const plant_fx *f, const double *x, double *dx)
         break;
     }
     case PLANT_FX_LINE:
-        m_c_new = f->mc_delayed;
+        if (q[0] > 0.0)
+            m_c_new = f->mc_delayed;
         m_s_new = fl.spring_valve * q[1];
         break;
     case PLANT_FX_TRUTH + PLANT_FX_LINE: {

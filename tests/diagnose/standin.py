@@ -35,8 +35,8 @@ class StandIn(Simulator):
             else:
                 comp, sol, vent = commands["compressor"][i], commands["solenoid"][i], commands["vent"][i]
             cmd["compressor"][i], cmd["solenoid"][i], cmd["vent"][i] = comp, sol, vent
-            for _ in range(5):
-                h = dt / 5
+            for _ in range(2):
+                h = dt / 2
                 f = (p2 - PA) * AREA - load[i]
                 band = 400.0
                 v = 0.0 if abs(f) < band else (f - np.sign(f) * band) / 2.0e5

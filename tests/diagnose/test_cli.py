@@ -1,0 +1,128 @@
+"""The CLI on bad input: clear errors naming file, line and field; nothing
+half-written to --out. And a whole run on the test-only stand-in plant."""
+import json
+import os
+
+import numpy as np
+import pytest
+
+from conftest import thesis_schedule
+from leveler.diagnose import cli, runs
+from standin import StandIn
+
+SIM = ["--simulator", "standin:StandIn"]
+
+
+def make_logs(folder, effect=None, params=None, seed=0):
+    sim = StandIn()
+    rng = np.random.default_rng(seed)
+    paths = []
+    for i, (on, off, step) in enumerate([(5, 35, 200), (4, 31, 250), (6, 33, 150)]):
+        t, load = thesis_schedule(end=50.0, on=on, off=off, step_lb=step)
+        tr = sim.generate("toy", t, load, effect, params or {}, 0)
+        sig = dict(tr.signals)
+        sig["height_m"] = sig["height_m"] + rng.normal(0, 0.05e-3, len(t))
+        sig["p_spring_pa"] = sig["p_spring_pa"] + rng.normal(0, 200.0, len(t))
+        p = os.path.join(folder, f"run{i}.csv")
+        runs.write_run(p, t, sig, load, tr.commands, "toy", "rig")
+        paths.append(p)
+    return paths
+
+
+def args(paths, out, *extra):
+    return ["--config", "toy", "--run", paths[0], "--run", paths[1], "--holdout", paths[2],
+            "--out", str(out), "--quiet", "--jobs", "1"] + SIM + list(extra)
+
+
+@pytest.fixture(scope="module")
+def logs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("logs")
+    return make_logs(str(d), "sensor_lag", {"tau_pressure_s": 0.5, "p_offset_pa": 4000.0})
+
+
+def rewrite(src, dst, fn):
+    with open(src) as fh:
+        lines = fh.read().splitlines()
+    with open(dst, "w") as fh:
+        fh.write("\n".join(fn(lines)) + "\n")
+
+
+def run_cli(argv, capsys):
+    rc = cli.main(argv)
+    return rc, capsys.readouterr().err
+
+
+def test_missing_column_names_file_line_and_column(logs, tmp_path, capsys):
+    bad = str(tmp_path / "bad.csv")
+    rewrite(logs[0], bad, lambda ls: [l if not l.startswith("t_s") else l.replace("height_m,", "")
+                                      for l in ls])
+    out = tmp_path / "out"
+    rc, err = run_cli(args([bad, logs[1], logs[2]], out), capsys)
+    assert rc == 2
+    assert "bad.csv:4" in err and "height_m" in err and "missing" in err
+    assert not out.exists()
+
+
+def test_time_going_backwards_names_the_line(logs, tmp_path, capsys):
+    bad = str(tmp_path / "back.csv")
+
+    def swap(ls):
+        ls[100], ls[101] = ls[101], ls[100]       # two data rows out of order
+        return ls
+    rewrite(logs[0], bad, swap)
+    out = tmp_path / "out"
+    rc, err = run_cli(args([bad, logs[1], logs[2]], out), capsys)
+    assert rc == 2
+    assert "back.csv:102" in err and "t_s" in err
+    assert not out.exists()
+
+
+def test_height_in_inches_is_called_out(logs, tmp_path, capsys):
+    bad = str(tmp_path / "inches.csv")
+
+    def to_inches(ls):
+        out = []
+        for l in ls:
+            c = l.split(",")
+            if l[0].isdigit():
+                c[1] = repr(float(c[1]) / 0.0254)
+            out.append(",".join(c))
+        return out
+    rewrite(logs[0], bad, to_inches)
+    rc, err = run_cli(args([bad, logs[1], logs[2]], tmp_path / "out"), capsys)
+    assert rc == 2 and "inches.csv:" in err and "inches" in err and "height_m" in err
+
+
+def test_unknown_config(logs, tmp_path, capsys):
+    a = args(logs, tmp_path / "out")
+    a[a.index("toy")] = "no-such-config"
+    rc, err = run_cli(a, capsys)
+    assert rc == 2 and "no-such-config" in err and "toy" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_whole_run_names_the_effect_and_writes_atomically(logs, tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "stale.txt").write_text("from an earlier run")
+    rc, err = run_cli(args(logs, out, "--effects", "leak,sensor_lag", "--fast"), capsys)
+    assert rc == 0, err
+    d = json.loads((out / "diagnosis.json").read_text())
+    for key in ("where", "ranking", "effect", "gap_before", "gap_after", "shrink_pct"):
+        assert key in d
+    assert d["effect"] == "sensor_lag"
+    assert d["shrink_pct"] > 50.0
+    assert d["ranking"][0]["params"]["tau_pressure_s"]["lo"] == 0.0
+    assert abs(d["ranking"][0]["params"]["tau_pressure_s"]["value"] - 0.5) < 0.15
+    assert not (out / "stale.txt").exists()                      # replaced whole
+    assert [p for p in os.listdir(tmp_path) if p.startswith(".diagnose-")] == []
+    html = (out / "report.html").read_text()
+    assert "data:image/png;base64," in html and "sensor_lag" in html
+
+
+def test_noise_only_answers_none(tmp_path, capsys):
+    logs = make_logs(str(tmp_path), None, None, seed=3)
+    rc, err = run_cli(args(logs, tmp_path / "out", "--effects", "leak,sensor_lag", "--fast"), capsys)
+    assert rc == 0, err
+    d = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    assert d["effect"] == "none"
