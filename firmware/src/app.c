@@ -99,13 +99,15 @@ void leveler_app_tick(void)
 
     /* 1. sample */
     leveler_sensors_sample(&g_sensors, set, now_ms);
+    uint16_t used = leveler_control_channels_used(set->algorithm);
     leveler_measurements m = {
         .height_um = g_sensors.ch[HAL_ADC_HEIGHT].value,
         .p_spring_pa = g_sensors.ch[HAL_ADC_P_SPRING].value,
         .p_pipe_pa = g_sensors.ch[HAL_ADC_P_PIPE].value,
         .p_acc_pa = g_sensors.ch[HAL_ADC_P_ACC].value,
-        .sensors_valid = leveler_sensors_all_valid(&g_sensors),
-        .sensor_fault_bits = leveler_sensors_fault_bits(&g_sensors),
+        .sensors_valid = leveler_sensors_valid(&g_sensors, used),
+        .sensor_fault_bits = (uint16_t)(leveler_sensors_fault_bits(&g_sensors) & used),
+        .channels_used = used,
     };
 
     /* 2. control (auto) or manual request, then the supervisor's word */
@@ -127,7 +129,7 @@ void leveler_app_tick(void)
     g_status.p_spring_pa = m.p_spring_pa;
     g_status.p_pipe_pa = m.p_pipe_pa;
     g_status.p_acc_pa = m.p_acc_pa;
-    g_status.sensor_fault_bits = m.sensor_fault_bits;
+    g_status.sensor_fault_bits = leveler_sensors_fault_bits(&g_sensors); /* all channels, used or not */
     g_status.sensors_valid = m.sensors_valid;
     for (unsigned c = 0; c < HAL_ADC_COUNT; c++) {
         g_status.raw_counts[c] = g_sensors.ch[c].raw_counts;

@@ -73,6 +73,15 @@ static leveler_control_state accumulator(int32_t lower_um, int32_t upper_um, int
     return LEVELER_STATE_IN_BAND;
 }
 
+uint16_t leveler_control_channels_used(uint16_t algorithm)
+{
+    const uint16_t all = (uint16_t)((1u << HAL_ADC_COUNT) - 1u);
+    if (algorithm == (uint16_t)LEVELER_ALGO_NO_ACCUMULATOR) {
+        return (uint16_t)(all & ~(1u << HAL_ADC_P_ACC));
+    }
+    return all;
+}
+
 leveler_control_state leveler_control_decide(uint16_t algorithm, int32_t band_lower_um, int32_t band_upper_um,
                                              int32_t acc_charge_max_pa, int32_t height_um, int32_t p_pipe_pa,
                                              int32_t p_acc_pa, leveler_outputs *out)

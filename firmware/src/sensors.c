@@ -110,14 +110,19 @@ void leveler_sensors_sample(leveler_sensors *s, const leveler_settings *set, uin
     }
 }
 
-bool leveler_sensors_all_valid(const leveler_sensors *s)
+bool leveler_sensors_valid(const leveler_sensors *s, uint16_t channel_mask)
 {
     for (unsigned c = 0; c < HAL_ADC_COUNT; c++) {
-        if (!s->ch[c].valid) {
+        if ((channel_mask & (1u << c)) != 0u && !s->ch[c].valid) {
             return false;
         }
     }
     return true;
+}
+
+bool leveler_sensors_all_valid(const leveler_sensors *s)
+{
+    return leveler_sensors_valid(s, (uint16_t)((1u << HAL_ADC_COUNT) - 1u));
 }
 
 uint16_t leveler_sensors_fault_bits(const leveler_sensors *s)

@@ -73,7 +73,9 @@ void leveler_supervisor_step(leveler_supervisor *sv, const leveler_settings *set
 
     /* Pressure limits act only on trusted readings; untrusted ones mean the safe state anyway. */
     if (m->sensors_valid) {
-        int32_t p_max = max3(m->p_pipe_pa, m->p_spring_pa, m->p_acc_pa);
+        /* An unused P3 channel may be unwired: its reading is no evidence. */
+        int32_t p_acc_pa = (m->channels_used & (1u << HAL_ADC_P_ACC)) != 0u ? m->p_acc_pa : m->p_pipe_pa;
+        int32_t p_max = max3(m->p_pipe_pa, m->p_spring_pa, p_acc_pa);
         if (p_max > set->overpressure_limit_pa) {
             sv->overpressure_cut = true;
         } else if ((int64_t)p_max < (int64_t)set->overpressure_limit_pa - LEVELER_OVERPRESSURE_HYST_PA) {

@@ -136,6 +136,30 @@ static void test_sensor_fault_safe_and_led(void **state)
     assert_in_range(changes, 7, 9);
 }
 
+/* Algorithm 1 does without P3 (the thesis rig had no accumulator transducer):
+ * an open P3 input is reported but neither faults nor stops control. Under
+ * algorithm 2 the same input is a latched sensor fault and the safe state. */
+static void test_unused_p3_channel_needs_no_transducer(void **state)
+{
+    (void)state;
+    boot_valid();
+    set_sensors(BELOW_UM, P_NOMINAL_PA, P_NOMINAL_PA, P_NOMINAL_PA);
+    fake_hal_set_adc(HAL_ADC_P_ACC, 0); /* open wire */
+    run_ticks(leveler_settings_current()->sensor_bad_samples + 2u);
+    assert_int_equal(read_ir_u16(LEVELER_IR_SENSOR_FAULT_BITS), 1u << HAL_ADC_P_ACC);
+    assert_int_equal(read_ir_u16(LEVELER_IR_LATCHED_FAULT_BITS), 0);
+    assert_true(leveler_app_status()->sensors_valid);
+    assert_true(outputs(1, 1, 0, 0)); /* still charging */
+
+    uint16_t algo2 = LEVELER_ALGO_ACCUMULATOR;
+    assert_int_equal(leveler_regs_write(LEVELER_TABLE_HOLDING_REGISTER, LEVELER_HR_ALGORITHM, 1, &algo2, NULL),
+                     LEVELER_REG_OK);
+    run_ticks(1);
+    assert_true(outputs(0, 0, 0, 0));
+    assert_int_equal(read_ir_u16(LEVELER_IR_LAST_FAULT_CODE), 7); /* P3 sensor */
+    assert_int_not_equal(read_ir_u16(LEVELER_IR_LATCHED_FAULT_BITS) & (1u << 6), 0);
+}
+
 static void test_target_reports_and_clock_wrap(void **state)
 {
     (void)state;
@@ -171,6 +195,7 @@ int main(void)
         cmocka_unit_test(test_algorithm2_through_registers),
         cmocka_unit_test(test_mode_off_and_manual),
         cmocka_unit_test(test_sensor_fault_safe_and_led),
+        cmocka_unit_test(test_unused_p3_channel_needs_no_transducer),
         cmocka_unit_test(test_target_reports_and_clock_wrap),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -161,16 +161,16 @@ static void test_coils(void **state)
     assert_int_equal(leveler_regs_read(LEVELER_TABLE_COIL, 0, 5, c), 0);
     assert_int_equal(c[LEVELER_COIL_MANUAL_VENT_VALVE], 1);
     assert_int_equal(c[LEVELER_COIL_MANUAL_COMPRESSOR], 0);
-    /* clear_faults: an action that reads back 0 */
-    fake_hal_set_adc(HAL_ADC_P_ACC, 0);
+    /* clear_faults: an action that reads back 0 (P1 is used by every algorithm) */
+    fake_hal_set_adc(HAL_ADC_P_PIPE, 0);
     run_ticks(leveler_settings_current()->sensor_bad_samples);
-    fake_hal_set_adc(HAL_ADC_P_ACC, counts_for(HAL_ADC_P_ACC, P_NOMINAL_PA));
+    fake_hal_set_adc(HAL_ADC_P_PIPE, counts_for(HAL_ADC_P_PIPE, P_NOMINAL_PA));
     run_ticks(leveler_settings_current()->sensor_good_samples);
-    assert_int_equal(read_ir_u16(LEVELER_IR_LATCHED_FAULT_BITS), LEVELER_FAULT_BIT(LEVELER_FAULT_SENSOR_P_ACC));
-    assert_int_equal(read_ir_u16(LEVELER_IR_LAST_FAULT_CODE), LEVELER_FAULT_SENSOR_P_ACC);
+    assert_int_equal(read_ir_u16(LEVELER_IR_LATCHED_FAULT_BITS), LEVELER_FAULT_BIT(LEVELER_FAULT_SENSOR_P_PIPE));
+    assert_int_equal(read_ir_u16(LEVELER_IR_LAST_FAULT_CODE), LEVELER_FAULT_SENSOR_P_PIPE);
     assert_int_equal(read_ir_u16(LEVELER_IR_FAULT_COUNT_SENSOR), 1);
     assert_int_equal(write_coil(LEVELER_COIL_CLEAR_FAULTS, 0), LEVELER_REG_OK); /* 0 does nothing */
-    assert_int_equal(read_ir_u16(LEVELER_IR_LATCHED_FAULT_BITS), LEVELER_FAULT_BIT(LEVELER_FAULT_SENSOR_P_ACC));
+    assert_int_equal(read_ir_u16(LEVELER_IR_LATCHED_FAULT_BITS), LEVELER_FAULT_BIT(LEVELER_FAULT_SENSOR_P_PIPE));
     assert_int_equal(write_coil(LEVELER_COIL_CLEAR_FAULTS, 1), LEVELER_REG_OK);
     assert_int_equal(read_ir_u16(LEVELER_IR_LATCHED_FAULT_BITS), 0);
     assert_int_equal(leveler_regs_read(LEVELER_TABLE_COIL, 0, 1, c), 0);

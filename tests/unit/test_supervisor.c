@@ -16,7 +16,7 @@ static int setup(void **state)
     (void)state;
     leveler_settings_defaults(&set);
     leveler_supervisor_init(&sv);
-    m = (leveler_measurements){398780, 613633, 613633, 613633, true, 0};
+    m = (leveler_measurements){398780, 613633, 613633, 613633, true, 0, 0xFu};
     now = 1000;
     return 0;
 }

@@ -27,4 +27,13 @@ leveler_control_state leveler_control_decide(uint16_t algorithm, int32_t band_lo
                                              int32_t acc_charge_max_pa, int32_t height_um, int32_t p_pipe_pa,
                                              int32_t p_acc_pa, leveler_outputs *out);
 
+/*
+ * The sensor channels an algorithm depends on, bit n = hal_adc_channel n.
+ * Algorithm 1 leaves out P3: the thesis rig without an accumulator had only
+ * the LVDT and the spring and pipe transducers (Chapter III, "System
+ * Modelling"), so a rig without one must not fault on a missing P3.
+ * An unknown algorithm needs every channel.
+ */
+uint16_t leveler_control_channels_used(uint16_t algorithm);
+
 #endif /* LEVELER_CONTROL_H */

@@ -63,6 +63,8 @@ typedef struct {
 void leveler_sensors_init(leveler_sensors *s, uint32_t now_ms);
 void leveler_sensors_sample(leveler_sensors *s, const leveler_settings *set, uint32_t now_ms);
 bool leveler_sensors_all_valid(const leveler_sensors *s);
+/* Every channel in channel_mask (bit n = channel n) valid. */
+bool leveler_sensors_valid(const leveler_sensors *s, uint16_t channel_mask);
 uint16_t leveler_sensors_fault_bits(const leveler_sensors *s); /* bit n = channel n faulty */
 
 #endif /* LEVELER_SENSORS_H */

@@ -41,8 +41,9 @@ typedef struct {
     int32_t p_spring_pa;
     int32_t p_pipe_pa;
     int32_t p_acc_pa;
-    bool sensors_valid;         /* every channel valid */
-    uint16_t sensor_fault_bits; /* bit n = channel n faulty */
+    bool sensors_valid;         /* every channel in channels_used valid */
+    uint16_t sensor_fault_bits; /* bit n = channel n faulty (used channels only) */
+    uint16_t channels_used;     /* leveler_control_channels_used(): the rest are not trusted */
 } leveler_measurements;
 
 typedef struct {
