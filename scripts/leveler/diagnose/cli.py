@@ -56,14 +56,18 @@ def run(a, say):
         if c not in fx.NAMES:
             raise DiagnoseInputError(f"--effects: unknown effect {c!r} (known: {', '.join(fx.NAMES)})")
     sim = model.make_simulator(a.simulator)
-    if hasattr(sim, "check_config"):
-        sim.check_config(a.config)          # exists and loads (file:line errors)
-    elif a.config not in sim.configs():
-        raise DiagnoseInputError(f"--config: no plant config named {a.config!r} "
-                                 f"(known: {', '.join(sorted(sim.configs())) or 'none'})")
+    def check(config):
+        if hasattr(sim, "check_config"):
+            sim.check_config(config)          # exists and loads (file:line errors)
+        elif config not in sim.configs():
+            raise DiagnoseInputError(f"--config: no plant config named {config!r} "
+                                     f"(known: {', '.join(sorted(sim.configs())) or 'none'})")
+    check(a.config)
     if a.features:
         from . import features
         calib, holdout = features.load(a.features, a.config)
+        for r in calib + holdout:
+            check(r.config_override)
         mode = model.CLOSED_LOOP
     else:
         say(f"reading {len(a.run)} calibration and {len(a.holdout)} held-out run log(s)")

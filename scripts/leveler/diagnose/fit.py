@@ -52,7 +52,8 @@ class Problem:
 
     def simulate(self, run, effect, params):
         self.nsim += 1
-        return self.sim.simulate(self.config, run, effect, params, choose_mode(run, self.mode))
+        config = getattr(run, "config_override", None) or self.config
+        return self.sim.simulate(config, run, effect, params, choose_mode(run, self.mode))
 
     def residual_vector(self, effect, params):
         parts = []
@@ -86,11 +87,15 @@ def cost_to_gap(r, nruns):
     return float(np.sqrt(np.sum(r ** 2) / max(nruns, 1)))
 
 
-def fit_effect(problem, effect, starts=16, max_nfev=40, seed=0, polish=3):
+def fit_effect(problem, effect, starts=32, max_nfev=60, seed=0, polish=4):
     """Least-squares fit of one effect. Returns dict with params, cost, evaluations."""
     d = len(effect.params)
     sampler = qmc.Halton(d, scramble=True, seed=seed)
     cand = sampler.random(max(2, starts))
+    # the "off" point (nominal plant) when it lies in the box: a fit can always fall back to it
+    off = effect.nominal()
+    if all(p.lo <= off[p.name] <= p.hi for p in effect.params):
+        cand = np.vstack([to_unit(effect, off), cand])
     costs = []
     for u in cand:
         r = problem.residual_vector(effect.name, from_unit(effect, u))

@@ -67,6 +67,56 @@ def shrink(before, after):
     return float(100.0 * (1.0 - after / before))
 
 
+# Which phase each thesis event figure belongs to (for the `where` table of a features run).
+FEATURE_PHASE = {
+    "height_before_step_m": "steady", "lowest_height_m": "drop", "p2_drop_stop_pa": "drop",
+    "time_stuck_bottom_s": "stuck_low", "p2_breakaway_pa": "stuck_low",
+    "time_return_after_step_s": "climb", "p2_after_climb_pa": "settle",
+    "highest_height_m": "jump", "p2_jump_pa": "jump", "time_stuck_top_s": "stuck_high",
+    "p2_start_down_pa": "stuck_high", "time_return_after_removal_s": "return",
+}
+
+
+def _is_features(runs):
+    return any(hasattr(r, "features") for r in runs)
+
+
+def feature_table(run, trace):
+    """Published figure vs simulated, difference in SI and in resolution units."""
+    from .features import FEATURE_SCALE, KIND
+    sim = run.figures(trace)
+    rows = []
+    for k, v in run.features.items():
+        s = sim.get(k)
+        rows.append({"run": run.name, "figure": k, "phase": FEATURE_PHASE[k], "published": v, "simulated": s,
+                     "difference": None if s is None else s - v,
+                     "normalised": None if s is None else (s - v) / FEATURE_SCALE[KIND[k]]})
+    return rows
+
+
+def feature_where(problem, runs):
+    rows = []
+    for r in runs:
+        rows += feature_table(r, problem.simulate(r, None, {}))
+    ranked = sorted(rows, key=lambda x: -(abs(x["normalised"]) if x["normalised"] is not None else 1e9))
+    for i, x in enumerate(ranked, 1):
+        x["rank"] = i
+    return {"ranked": ranked, "runs": [{"run": r.name, "features": r.features} for r in runs]}
+
+
+def feature_before_after(problem, runs, nominal, augmented):
+    from . import fit
+    out = {"overall": {"before": {"normalised": fit.cost_to_gap(
+                           np.concatenate([fit.run_residual(r, t) for r, t in zip(runs, nominal)]), len(runs))},
+                       "after": {"normalised": fit.cost_to_gap(
+                           np.concatenate([fit.run_residual(r, t) for r, t in zip(runs, augmented)]), len(runs))}},
+           "per_phase": {}, "events": []}
+    for r, n, a in zip(runs, nominal, augmented):
+        out["events"].append({"run": r.name, "real": r.features, "nominal": r.figures(n),
+                              "augmented": r.figures(a)})
+    return out
+
+
 def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jobs=None,
              progress=print, fit_opts=None):
     """Returns (result dict for diagnosis.json, traces for the report)."""
@@ -75,12 +125,20 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
     cal_problem = fit.Problem(sim, config, calib, mode)
     hold_problem = fit.Problem(sim, config, holdout, mode)
 
+    features = _is_features(list(calib) + list(holdout))
     progress(f"[1/3] where the gap lies: nominal simulation of {len(calib) + len(holdout)} run(s)")
-    where, _ = where_table(cal_problem, list(calib) + list(holdout))
+    if features:
+        where = feature_where(cal_problem, list(calib) + list(holdout))
+    else:
+        where, _ = where_table(cal_problem, list(calib) + list(holdout))
     nominal_hold = [hold_problem.simulate(r, None, {}) for r in holdout]
     nominal_cal_gap = cal_problem.gap(None, {})
     nominal_hold_gap = hold_problem.gap(None, {})
     for w in where["ranked"][:3]:
+        if features:
+            progress(f"      #{w['rank']} {w['run']}: {w['figure']} off by {w['difference']} "
+                     f"({w['normalised']} resolution units)")
+            continue
         progress(f"      #{w['rank']} {w['phase']:<10} {w['signal']:<6} bias {w['bias']:+.2f} {w['unit']}, "
                  f"RMS {w['rms']:.2f} {w['unit']} ({w['share_pct']:.0f}% of the gap)")
 
@@ -126,7 +184,10 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
         aug_hold = [hold_problem.simulate(r, winner, fitted) for r in holdout]
     else:
         aug_hold = nominal_hold
-    ba = before_after(holdout, nominal_hold, aug_hold)
+    if features:
+        ba = feature_before_after(hold_problem, holdout, nominal_hold, aug_hold)
+    else:
+        ba = before_after(holdout, nominal_hold, aug_hold)
     result = {
         "config": config,
         "mode": mode,

@@ -121,7 +121,16 @@ def write_html(path, result, traces):
         ("parameters", lambda r: ", ".join(f"{k}={v['value']:.3g} [{v['lo']:.3g}, {v['hi']:.3g}]"
                                            for k, v in r["params"].items()))]))
     parts.append("<h2>Where the gap lies (nominal model, all runs)</h2>")
-    parts.append(_table(result["where"]["ranked"][:16], [
+    ranked = result["where"]["ranked"]
+    if ranked and "figure" in ranked[0]:
+        num = lambda v: "-" if v is None else v
+        parts.append(_table(ranked, [
+            ("rank", lambda r: str(r["rank"])), ("run", lambda r: r["run"]), ("figure", lambda r: r["figure"]),
+            ("phase", lambda r: r["phase"]), ("published (SI)", lambda r: num(r["published"])),
+            ("nominal (SI)", lambda r: num(r["simulated"])),
+            ("difference / resolution", lambda r: num(r["normalised"]))]))
+        ranked = []
+    parts.append(_table(ranked[:16], [
         ("rank", lambda r: str(r["rank"])), ("phase", lambda r: r["phase"]), ("signal", lambda r: r["signal"]),
         ("bias", lambda r: r["bias"]), ("RMS", lambda r: r["rms"]), ("unit", lambda r: r["unit"]),
         ("share %", lambda r: r["share_pct"])]))
@@ -135,8 +144,8 @@ def write_html(path, result, traces):
         parts.append(f"<h3>Event figures: {html.escape(ev['run'])}</h3>")
         parts.append(_table([{"k": k} for k in ev["real"]], [
             ("figure", lambda r: r["k"]), ("real", lambda r: ev["real"][r["k"]]),
-            ("nominal", lambda r: ev["nominal"].get(r["k"], float("nan"))),
-            ("augmented", lambda r: ev["augmented"].get(r["k"], float("nan")))]))
+            ("nominal", lambda r: ev["nominal"].get(r["k"]) or float("nan")),
+            ("augmented", lambda r: ev["augmented"].get(r["k"]) or float("nan"))]))
     if traces:
         parts.append("<h2>Traces (held-out)</h2>")
         for run, nom, aug in zip(traces["holdout"], traces["nominal"], traces["augmented"]):

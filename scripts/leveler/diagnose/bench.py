@@ -1,0 +1,53 @@
+"""bench-diagnose: wall time of one full diagnosis (2 calibration runs, 1 holdout,
+all seven candidates in parallel processes) on blind-test logs. Prints figures;
+the target is under 60 s on a 2-core machine."""
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+from . import blindtest
+from .model import make_simulator
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="bench-diagnose", description=__doc__)
+    ap.add_argument("--out", default=None, help="folder for the logs and the diagnosis")
+    ap.add_argument("--effect", default="thermal", choices=blindtest.CASES)
+    ap.add_argument("--repeat", type=int, default=3)
+    a = ap.parse_args(argv)
+    top = a.out or tempfile.mkdtemp(prefix="leveler-bench-diagnose-")
+    logs = os.path.join(top, "logs")
+    os.makedirs(logs, exist_ok=True)
+    sim = make_simulator()
+    t0 = time.perf_counter()
+    sim.generate(blindtest.CONFIG, *_thesis_grid(), None, [])
+    one_sim = time.perf_counter() - t0
+    blindtest.generate_case(sim, a.effect, 1, logs)
+    times = []
+    for _ in range(a.repeat):
+        t0 = time.perf_counter()
+        cmd = [sys.executable, "-m", "leveler.diagnose", "--config", blindtest.CONFIG,
+               "--run", os.path.join(logs, "cal1.csv"), "--run", os.path.join(logs, "cal2.csv"),
+               "--holdout", os.path.join(logs, "hold.csv"), "--out", os.path.join(top, "diagnosis"), "--quiet"]
+        subprocess.run(cmd, check=True)
+        times.append(time.perf_counter() - t0)
+    print(f"cores: {os.cpu_count()}")
+    print(f"one 55 s closed-loop simulation (firmware in the loop): {one_sim * 1e3:.1f} ms")
+    print(f"full diagnosis, 2 calibration + 1 holdout runs, 7 candidates: "
+          f"best {min(times):.1f} s, median {sorted(times)[len(times) // 2]:.1f} s over {len(times)} "
+          f"(target < 60 s)")
+    return 0
+
+
+def _thesis_grid():
+    import numpy as np
+    t = np.round(np.arange(0.0, 55.0 + 1e-9, 0.01), 2)
+    load = np.where((t >= 5) & (t < 35), 1100 * blindtest.LB, 900 * blindtest.LB)
+    return t, load
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,139 @@
+"""Published event figures instead of traces (--features FILE).
+
+The file is JSON:
+
+    {"source": "...",
+     "runs": [{"name": "thesis-900lb-exp", "config": "thesis-900lb", "role": "calibration",
+               "schedule": {"base_load_n": 4003.4, "step_load_n": 889.6,
+                            "step_on_s": 5, "step_off_s": 35, "end_s": 55},
+               "features": {"lowest_height_m": 0.37084, ...}},
+              {"name": "thesis-1000lb-exp", "config": "thesis-1000lb", "role": "holdout", ...}]}
+
+Feature keys are leveler.events.SUMMARY_KEYS (SI; null = not published).
+"schedule" is optional (default: the thesis scenario at the config's base
+load) and "config" defaults to --config. Each run is simulated closed loop
+with the firmware, its event figures extracted as for a trace, and the
+residual is the difference to the published figures in units of the
+figures' published resolution (FEATURE_SCALE).
+"""
+import json
+import math
+import os
+
+import numpy as np
+
+from leveler import events
+
+from . import gap
+from .errors import DiagnoseInputError
+
+# One unit of error per figure: the resolution the thesis quotes them in.
+FEATURE_SCALE = {"length": 0.05 * 0.0254, "pressure": 6894.757293168361, "time": 1.0}
+KIND = {k: ("length" if k.endswith("_m") else "pressure" if k.endswith("_pa") else "time")
+        for k in events.SUMMARY_KEYS}
+MISSING_PENALTY = 5.0   # a figure the simulation does not produce at all (in scale units)
+LB = 4.4482216152605
+
+
+class FeatureRun:
+    """A run known only by its event figures; simulated closed loop on its schedule."""
+
+    def __init__(self, name, config, schedule, features):
+        self.name = self.path = name
+        self.config_override = config
+        self.features = features
+        end = schedule["end_s"]
+        self.t_s = np.round(np.arange(0.0, end + 1e-9, 0.01), 2)
+        on = (self.t_s >= schedule["step_on_s"]) & (self.t_s < schedule["step_off_s"])
+        self.load_n = np.where(on, schedule["base_load_n"] + schedule["step_load_n"], schedule["base_load_n"])
+        nan = np.full(len(self.t_s), np.nan)
+        self.signals = {s: nan for s in ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")}
+        self.commands = {}
+        self.has_commands = False
+
+    def measured(self, signal):
+        return False
+
+    def figures(self, trace):
+        return gap.event_figures(trace.t_s, trace.signals, self.load_n)
+
+    def residual_vector(self, trace):
+        sim = self.figures(trace)
+        r = []
+        for k, v in self.features.items():
+            s = sim.get(k)
+            r.append(MISSING_PENALTY if s is None else (s - v) / FEATURE_SCALE[KIND[k]])
+        return np.array(r) / math.sqrt(max(len(r), 1))
+
+
+def _base_load(config):
+    for lb in (1000, 900, 1100, 1200):
+        if f"{lb}lb" in config:
+            return lb * LB
+    return 900.0 * LB
+
+
+def load(path, default_config):
+    """(calibration runs, holdout runs) from a features file. DiagnoseInputError on bad input."""
+    try:
+        with open(path) as fh:
+            doc = json.load(fh)
+    except OSError as e:
+        raise DiagnoseInputError(f"{path}: cannot read: {e.strerror}") from None
+    except json.JSONDecodeError as e:
+        raise DiagnoseInputError(f"{path}:{e.lineno}: not JSON: {e.msg}") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("runs"), list) or not doc["runs"]:
+        raise DiagnoseInputError(f"{path}: expected an object with a non-empty list \"runs\"")
+    calib, hold = [], []
+    for i, r in enumerate(doc["runs"]):
+        where = f"{path}: runs[{i}]"
+        feats = r.get("features")
+        if not isinstance(feats, dict):
+            raise DiagnoseInputError(f"{where}: missing object \"features\"")
+        clean = {}
+        for k, v in feats.items():
+            if k not in KIND:
+                raise DiagnoseInputError(f"{where}: features.{k}: unknown figure (known: "
+                                         f"{', '.join(events.SUMMARY_KEYS)})")
+            if v is None:
+                continue
+            if not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise DiagnoseInputError(f"{where}: features.{k}: not a number: {v!r}")
+            lo, hi = {"length": (0.05, 1.5), "pressure": (2e4, 3e6), "time": (0.0, 1e4)}[KIND[k]]
+            if not lo <= v <= hi:
+                raise DiagnoseInputError(f"{where}: features.{k} = {v:g} is outside {lo:g}..{hi:g} "
+                                         f"(SI: m, Pa absolute, s)")
+            clean[k] = float(v)
+        if not clean:
+            raise DiagnoseInputError(f"{where}: no published figure")
+        config = r.get("config") or default_config
+        sched = {"base_load_n": _base_load(config), "step_load_n": 200.0 * LB,
+                 "step_on_s": 5.0, "step_off_s": 35.0, "end_s": 55.0}
+        for k, v in (r.get("schedule") or {}).items():
+            if k not in sched:
+                raise DiagnoseInputError(f"{where}: schedule.{k}: unknown key (known: {', '.join(sched)})")
+            sched[k] = float(v)
+        run = FeatureRun(r.get("name") or f"run{i}", config, sched, clean)
+        role = r.get("role", "calibration")
+        if role not in ("calibration", "holdout"):
+            raise DiagnoseInputError(f"{where}: role must be calibration or holdout, not {role!r}")
+        (calib if role == "calibration" else hold).append(run)
+    if not calib or not hold:
+        raise DiagnoseInputError(f"{path}: need at least one calibration and one holdout run")
+    return calib, hold
+
+
+def thesis_experiment_file(path):
+    """Writes the thesis experiment table (README, leveler.thesis) as a features file:
+    900 lb for calibration, 1000 lb held out."""
+    from leveler import thesis
+    runs = []
+    for case, config, role in (("thesis-900lb-exp", "thesis-900lb", "calibration"),
+                               ("thesis-1000lb-exp", "thesis-1000lb", "holdout")):
+        runs.append({"name": case, "config": config, "role": role,
+                     "features": {k: v for k, v in thesis.CASES[case].items() if v is not None}})
+    doc = {"source": "thesis Chapter IV experiment (README table), SI", "runs": runs}
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path, "w") as fh:
+        json.dump(doc, fh, indent=2)
+        fh.write("\n")
