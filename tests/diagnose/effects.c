@@ -4,7 +4,8 @@
  * Parameters by kind (SI; "off" = the value that gives the nominal plant):
  *  candidates
  *   1 thermal   p0 tau_thermal_s (0 = off: fixed polytropic n)
- *   2 area      p0 a1 rel/m, p1 a2 rel/m^2 (0, 0 = off), held flat past +-50 mm
+ *   2 area      A = A_nom (1 + a0 + a1 d + a2 d^2), d = y - y_ref held within +-50 mm:
+ *               p0 a1 rel/m, p1 a2 rel/m^2, p2 a0 relative (0, 0, 0 = off)
  *   3 friction  p0 coulomb N, p1 stribeck N, p2 stribeck velocity m/s
  *   4 valve     p0 open delay s, p1 close delay s, p2 ISO 6358 b (0 = eq. 8), p3 outflow C scale
  *   5 line      p0 transport delay s, p1 conductance scale of the spring path (1 = off)
@@ -37,7 +38,7 @@ typedef struct {
 /* Physical ranges (also the fitting bounds in effects.py; off values included). */
 static const fx_range RANGES[] = {
     {PLANT_FX_THERMAL, 1, {0.0}, {600.0}},
-    {PLANT_FX_AREA, 2, {-10.0, -1000.0}, {10.0, 1000.0}},
+    {PLANT_FX_AREA, 3, {-10.0, -1000.0, -0.3}, {10.0, 1000.0, 0.3}},
     {PLANT_FX_FRICTION, 3, {0.0, 0.0, 1e-5}, {2000.0, 2000.0, 1.0}},
     {PLANT_FX_VALVE, 4, {0.0, 0.0, 0.0, 0.05}, {1.0, 1.0, 0.9, 5.0}},
     {PLANT_FX_LINE, 2, {0.0, 0.05}, {1.2, 1.0}},
@@ -138,7 +139,7 @@ static double area_scale(const plant_fx *f, double y)
     if (is_kind(f, PLANT_FX_AREA)) {
         /* the rolling lobe's area stops changing past +-50 mm */
         d = fmax(-0.05, fmin(0.05, d));
-        return 1.0 + f->fx.p[0] * d + f->fx.p[1] * d * d;
+        return 1.0 + f->fx.p[2] + f->fx.p[0] * d + f->fx.p[1] * d * d;
     }
     /* truth: piecewise linear over knots y_ref + (-2..2) * 20 mm, flat outside */
     double u = d / 0.020 + 2.0;

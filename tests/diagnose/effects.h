@@ -13,7 +13,7 @@
  * DIFFERENT functional form from its candidate, so a fit is never exact:
  *   thermal    candidate: one gas-to-wall time constant, wall at ambient
  *              truth:     gas-wall and wall-ambient time constants (wall temperature state)
- *   area       candidate: A_nom(y) (1 + a1 (y - y0) + a2 (y - y0)^2)
+ *   area       candidate: A_nom(y) (1 + a0 + a1 (y - y0) + a2 (y - y0)^2)
  *              truth:     A_nom(y) times a piecewise-linear table over 5 heights
  *   friction   candidate: Coulomb + Stribeck, stick below a velocity threshold
  *              truth:     LuGre (bristle state z)

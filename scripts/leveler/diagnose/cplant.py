@@ -131,6 +131,10 @@ class CPlant(Simulator):
         else:
             values, kind = [], 0
         init = initial_state(run)
+        if effect == "sensor_lag":
+            # the log shows what the transducers read: the plant started at reading - offset
+            init[0] -= params.get("h_offset_m", 0.0)
+            init[1] -= params.get("p_offset_pa", 0.0)
         commands = None if mode == CLOSED_LOOP else run.commands
         return self._call(config, run.t_s, run.load_n, commands, kind, values, init)
 

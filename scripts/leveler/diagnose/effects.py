@@ -46,6 +46,8 @@ EFFECTS = (
               doc="extra relative change of effective area per metre of height"),
         Param("area_curv_rel_per_m2", -200.0, 200.0, 0.0,
               doc="relative curvature of effective area against height"),
+        Param("area_offset_rel", -0.1, 0.1, 0.0,
+              doc="relative effective-area error at the reference height"),
     ), "nonlinear effective area and volume against height"),
     Effect("friction", 3, (
         Param("coulomb_n", 0.0, 400.0, 0.0, doc="Coulomb friction of the platform guide"),

@@ -61,6 +61,36 @@ def before_after(runs, nominal, augmented):
     return out
 
 
+def _phase_energy(runs, traces, labels):
+    """Per phase: summed normalised squared residual over runs."""
+    out = {}
+    for run, tr, lab in zip(runs, traces, labels):
+        for sig, r in gap.residuals(run, tr).items():
+            e = np.where(np.isfinite(r), (r / gap.SCALES[sig]) ** 2, 0.0)
+            for p in ph.PHASES:
+                out[p] = out.get(p, 0.0) + float(e[lab == p].sum())
+    return out
+
+
+def signatures(runs, problem, nominal, ranking):
+    """Residual signature of each fitted candidate against the phase table (held-out):
+    per-phase shrink, and how well the phases it fixes match where the gap lies
+    (cosine of the nominal per-phase energy and the candidate's per-phase reduction)."""
+    labels = [_labels(r) for r in runs]
+    e_nom = _phase_energy(runs, nominal, labels)
+    phases = [p for p in ph.PHASES if e_nom.get(p, 0.0) > 0.0]
+    v_nom = np.array([e_nom[p] for p in phases])
+    for entry in ranking:
+        params = {k: v["value"] for k, v in entry["params"].items()}
+        aug = [problem.simulate(r, entry["effect"], params) for r in runs]
+        e_aug = _phase_energy(runs, aug, labels)
+        entry["per_phase_shrink_pct"] = {p: shrink(np.sqrt(e_nom[p]), np.sqrt(e_aug.get(p, 0.0)))
+                                         for p in phases}
+        red = np.array([e_nom[p] - e_aug.get(p, 0.0) for p in phases])
+        den = np.linalg.norm(v_nom) * np.linalg.norm(red)
+        entry["signature_match"] = float(v_nom @ red / den) if den > 0 else 0.0
+
+
 def shrink(before, after):
     if not (before > 0 and np.isfinite(before) and np.isfinite(after)):
         return 0.0
@@ -170,6 +200,8 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
             "simulations": r["simulations"],
             "seconds": r["seconds"],
         })
+    if not features:
+        signatures(holdout, hold_problem, nominal_hold, ranking)
     ranking.sort(key=lambda x: -x["shrink_pct"])
     for i, r in enumerate(ranking, 1):
         r["rank"] = i

@@ -118,6 +118,7 @@ def write_html(path, result, traces):
         ("held-out shrink %", lambda r: r["shrink_pct"]),
         ("calibration shrink %", lambda r: r["calibration_shrink_pct"]),
         ("held-out gap", lambda r: r["holdout_gap"]),
+        ("signature match", lambda r: r.get("signature_match", float("nan"))),
         ("parameters", lambda r: ", ".join(f"{k}={v['value']:.3g} [{v['lo']:.3g}, {v['hi']:.3g}]"
                                            for k, v in r["params"].items()))]))
     parts.append("<h2>Where the gap lies (nominal model, all runs)</h2>")
