@@ -135,10 +135,26 @@ class CPlant(Simulator):
             # the log shows what the transducers read: the plant started at reading - offset
             init[0] -= params.get("h_offset_m", 0.0)
             init[1] -= params.get("p_offset_pa", 0.0)
-        commands = None if mode == CLOSED_LOOP else run.commands
-        return self._call(config, run.t_s, run.load_n, commands, kind, values, init)
+        if mode != CLOSED_LOOP:
+            return self._call(config, run.t_s, run.load_n, run.commands, kind, values, init)
+        return self._closed_loop(config, run.t_s, run.load_n, kind, values, init)
+
+    def _closed_loop(self, config, t_s, load_n, kind, values, init):
+        """The firmware ticks every 10 ms: simulate on that grid from the log's first
+        time, holding the logged load, then read the trace at the log's own times."""
+        tick = 0.01
+        rel = t_s - t_s[0]
+        if len(rel) > 1 and np.allclose(np.diff(rel), tick, atol=1e-6) and abs(rel[0]) < 1e-9:
+            return self._call(config, np.round(rel, 2), load_n, None, kind, values, init)
+        grid = np.arange(0.0, rel[-1] + tick / 2, tick)
+        idx = np.clip(np.searchsorted(rel, grid, side="right") - 1, 0, len(rel) - 1)
+        tr = self._call(config, grid, np.asarray(load_n)[idx], None, kind, values, init)
+        back = np.clip(np.searchsorted(grid, rel, side="right") - 1, 0, len(grid) - 1)
+        return Trace(t_s, {k: np.interp(rel, grid, v) for k, v in tr.signals.items()},
+                     {k: v[back] for k, v in tr.commands.items()})
 
     def generate(self, config, t_s, load_n, truth_effect, truth_params, seed=0):
         """Closed loop with a truth variant: truth_params is the list of the variant's values."""
         kind = 0 if truth_effect in (None, "none") else TRUTH + fx.get(truth_effect).effect_id
-        return self._call(config, t_s, load_n, None, kind, list(truth_params or []), [np.nan] * 3)
+        return self._closed_loop(config, np.asarray(t_s, dtype=float), load_n, kind,
+                                 list(truth_params or []), [np.nan] * 3)
