@@ -63,3 +63,17 @@ def test_features_run_end_to_end(cplant, tmp_path, capsys):
     assert d["gap_before"]["normalised"] > 0
     assert d["effect"] in ("thermal", "leak", "none")
     assert {r["effect"] for r in d["ranking"]} == {"thermal", "leak"}
+
+
+def test_flat_summaries_in_two_files(tmp_path):
+    """A flat leveler.events summary per file: the first calibrates, the second is held out."""
+    a = tmp_path / "exp900.json"
+    a.write_text(json.dumps({"config": "thesis-900lb", "lowest_height_m": 0.3708, "time_stuck_bottom_s": 19}))
+    b = tmp_path / "exp1000.json"
+    b.write_text(json.dumps({"config": "thesis-1000lb", "lowest_height_m": 0.3683}))
+    calib, hold = features.load_many([str(a), str(b)], "thesis-900lb")
+    assert [r.name for r in calib] == ["exp900"] and [r.name for r in hold] == ["exp1000"]
+    assert calib[0].features == {"lowest_height_m": 0.3708, "time_stuck_bottom_s": 19.0}
+    assert hold[0].config_override == "thesis-1000lb"
+    with pytest.raises(features.DiagnoseInputError, match="need at least one calibration and one holdout"):
+        features.load_many([str(a)], "thesis-900lb")

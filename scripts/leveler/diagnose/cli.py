@@ -22,8 +22,9 @@ def parse_args(argv):
     ap.add_argument("--run", action="append", default=[], metavar="CSV", help="calibration run log")
     ap.add_argument("--holdout", action="append", default=[], metavar="CSV",
                     help="held-out run log (never used in fitting)")
-    ap.add_argument("--features", metavar="JSON",
-                    help="published event figures instead of traces (see docs/diagnosis.md)")
+    ap.add_argument("--features", metavar="JSON", action="append",
+                    help="published event figures instead of traces (see docs/diagnosis.md); "
+                         "repeat to hold out the later files")
     ap.add_argument("--out", required=True, metavar="DIR", help="output folder (created; replaced whole)")
     ap.add_argument("--mode", choices=("auto", "replay", "closed_loop"), default="auto",
                     help="replay logged commands (auto when the log has them) or firmware in the loop")
@@ -65,7 +66,7 @@ def run(a, say):
     check(a.config)
     if a.features:
         from . import features
-        calib, holdout = features.load(a.features, a.config)
+        calib, holdout = features.load_many(a.features, a.config)
         for r in calib + holdout:
             check(r.config_override)
         mode = model.CLOSED_LOOP

@@ -73,7 +73,20 @@ def _base_load(config):
     return 900.0 * LB
 
 
-def load(path, default_config):
+def load_many(paths, default_config):
+    """Several files: runs without a role are calibration in the first file, held out in the others."""
+    calib, hold = [], []
+    for i, p in enumerate(paths):
+        c, h = load(p, default_config, "calibration" if i == 0 else "holdout", check=False)
+        calib += c
+        hold += h
+    if not calib or not hold:
+        raise DiagnoseInputError(f"{', '.join(paths)}: need at least one calibration and one holdout run "
+                                 f"(give \"role\" per run, or a second --features file to hold out)")
+    return calib, hold
+
+
+def load(path, default_config, default_role="calibration", check=True):
     """(calibration runs, holdout runs) from a features file. DiagnoseInputError on bad input."""
     try:
         with open(path) as fh:
@@ -82,8 +95,16 @@ def load(path, default_config):
         raise DiagnoseInputError(f"{path}: cannot read: {e.strerror}") from None
     except json.JSONDecodeError as e:
         raise DiagnoseInputError(f"{path}:{e.lineno}: not JSON: {e.msg}") from None
+    if isinstance(doc, dict) and "runs" not in doc and any(k in KIND for k in doc):
+        # a flat summary (leveler.events keys), optionally with config / schedule / role
+        doc = {"runs": [{"name": os.path.splitext(os.path.basename(path))[0],
+                         "config": doc.get("config"), "schedule": doc.get("schedule"),
+                         "role": doc.get("role", default_role),
+                         "features": {k: v for k, v in doc.items()
+                                      if k not in ("config", "schedule", "role", "name")}}]}
     if not isinstance(doc, dict) or not isinstance(doc.get("runs"), list) or not doc["runs"]:
-        raise DiagnoseInputError(f"{path}: expected an object with a non-empty list \"runs\"")
+        raise DiagnoseInputError(f"{path}: expected an object with a non-empty list \"runs\" "
+                                 f"or a flat object of event figures")
     calib, hold = [], []
     for i, r in enumerate(doc["runs"]):
         where = f"{path}: runs[{i}]"
@@ -114,11 +135,11 @@ def load(path, default_config):
                 raise DiagnoseInputError(f"{where}: schedule.{k}: unknown key (known: {', '.join(sched)})")
             sched[k] = float(v)
         run = FeatureRun(r.get("name") or f"run{i}", config, sched, clean)
-        role = r.get("role", "calibration")
+        role = r.get("role") or default_role
         if role not in ("calibration", "holdout"):
             raise DiagnoseInputError(f"{where}: role must be calibration or holdout, not {role!r}")
         (calib if role == "calibration" else hold).append(run)
-    if not calib or not hold:
+    if check and (not calib or not hold):
         raise DiagnoseInputError(f"{path}: need at least one calibration and one holdout run")
     return calib, hold
 

@@ -181,8 +181,11 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
     nominal_hold_gap = hold_problem.gap(None, {})
     for w in where["ranked"][:3]:
         if features:
-            progress(f"      #{w['rank']} {w['run']}: {w['figure']} off by {w['difference']} "
-                     f"({w['normalised']} resolution units)")
+            if w["difference"] is None:
+                progress(f"      #{w['rank']} {w['run']}: {w['figure']} not produced by the simulation")
+            else:
+                progress(f"      #{w['rank']} {w['run']}: {w['figure']} off by {w['difference']:+.4g} (SI), "
+                         f"{w['normalised']:+.1f} x its published resolution")
             continue
         progress(f"      #{w['rank']} {w['phase']:<10} {w['signal']:<6} bias {w['bias']:+.2f} {w['unit']}, "
                  f"RMS {w['rms']:.2f} {w['unit']} ({w['share_pct']:.0f}% of the gap)")
