@@ -154,6 +154,23 @@ static double area_scale(const plant_fx *f, double y)
 
 static double sgn(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
 
+/* LuGre's Stribeck curve g(v) = Fc + Fs exp(-(v/vs)^2), never below 1 mN. */
+static double lugre_g(const double *q, double v)
+{
+    return fmax(q[0] + q[1] * exp(-(v / q[2]) * (v / q[2])), 1e-3);
+}
+
+/* Exact bristle update over h at constant velocity v:
+ * z -> z_ss + (z - z_ss) exp(-s0 |v| h / g), z_ss = g sign(v) / s0. Unconditionally stable. */
+static double lugre_z_update(const double *q, double z, double v, double h)
+{
+    if (v == 0.0)
+        return z;
+    double g = lugre_g(q, v);
+    double z_ss = g * sgn(v) / q[3];
+    return z_ss + (z - z_ss) * exp(-q[3] * fabs(v) * h / g);
+}
+
 static void fx_derivatives(const plant_fx *f, const double *x, double *dx)
 {
     const plant *pl = &f->pl;
@@ -230,12 +247,13 @@ static void fx_derivatives(const plant_fx *f, const double *x, double *dx)
         return;
     }
     case PLANT_FX_TRUTH + PLANT_FX_FRICTION: {
-        /* LuGre: dz/dt = v - s0 |v| z / g(v), F = s0 z + s1 dz/dt (opposes motion). */
-        double g = q[0] + q[1] * exp(-(vel / q[2]) * (vel / q[2]));
+        /* LuGre: dz/dt = v - s0 |v| z / g(v), F = s0 z + s1 dz/dt (opposes motion).
+         * The bristle state is stiff at speed (s0 |v| / g up to thousands per second),
+         * so it is held within an RK4 step and advanced exactly after it (lugre_z_update). */
+        double g = lugre_g(q, vel);
         double z = xe[XE_Z];
-        double dz = vel - q[3] * fabs(vel) * z / fmax(g, 1e-6);
+        double dz = vel - q[3] * fabs(vel) * z / g;
         double ff = -(q[3] * z + q[4] * dz);
-        dxe[XE_Z] = dz;
         dx[PLANT_X_VEL] += ff / pl->mass_kg;
         return;
     }
@@ -322,6 +340,8 @@ static void rk4_step(plant_fx *f, double h)
     fx_derivatives(f, xt, k4);
     for (int i = 0; i < N; i++)
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    if (f->fx.kind == PLANT_FX_TRUTH + PLANT_FX_FRICTION)
+        x[PLANT_NX + XE_Z] = lugre_z_update(f->fx.p, f->xe[XE_Z], 0.5 * (vel + x[PLANT_X_VEL]), h);
     memcpy(pl->x, x, sizeof pl->x);
     memcpy(f->xe, x + PLANT_NX, sizeof f->xe);
     pl->t_s += h;

@@ -57,11 +57,14 @@ def truth_params(effect, rng):
 def schedules(rng):
     """Two calibration schedules and one held-out one, all different (900 lb base).
     The held-out step lies between the calibration steps: it tests the fitted
-    model on a new schedule, not on heights no calibration run reached."""
+    model on a new schedule, not on heights no calibration run reached. All
+    loaded states stay in one hysteresis band of the thesis (1050..1150 lb):
+    at 1150 lb the program's 1200 lb line takes over and the platform sinks
+    another 2.7 in, a different regime."""
     j = lambda: rng.uniform(-1.0, 1.0)
     base = 900.0 * LB
     return [
-        ("cal1", 5.0 + j(), 35.0 + j(), 55.0, base + 250.0 * LB),
+        ("cal1", 5.0 + j(), 35.0 + j(), 55.0, base + 240.0 * LB),
         ("cal2", 4.0 + j(), 31.0 + j(), 50.0, base + 150.0 * LB),
         ("hold", 6.0 + j(), 33.0 + j(), 52.0, base + 200.0 * LB),
     ]
