@@ -8,7 +8,7 @@
  *               p0 a1 rel/m, p1 a2 rel/m^2, p2 a0 relative (0, 0, 0 = off)
  *   3 friction  p0 coulomb N, p1 stribeck N, p2 stribeck velocity m/s
  *   4 valve     p0 open delay s, p1 close delay s, p2 ISO 6358 b (0 = eq. 8), p3 outflow C scale
- *   5 line      p0 transport delay s, p1 conductance scale of the spring path (1 = off)
+ *   5 line      p0 transport delay s, p1 dead volume of the tube added at the junction m^3 (0, 0 = off)
  *   6 leak      p0 orifice area m^2 (Cd 1)
  *   7 sensor    p0 pressure lag s, p1 height lag s, p2 P2 offset Pa, p3 height offset m
  *  truth variants (100 + kind)
@@ -27,7 +27,7 @@
 #include <string.h>
 
 enum { XE_T2 = 0, XE_T1 = 1, XE_TW = 2, XE_Z = 3, XE_PL = 4, XE_U = 4 };
-/* XE_U (valve opening fractions) uses slots 4 and 5; the line uses slot 4: never both. */
+/* XE_U (valve opening fractions) uses slots 4 and 5; the truth line uses slot 4: never both. */
 
 typedef struct {
     int kind;
@@ -41,7 +41,7 @@ static const fx_range RANGES[] = {
     {PLANT_FX_AREA, 3, {-10.0, -1000.0, -0.3}, {10.0, 1000.0, 0.3}},
     {PLANT_FX_FRICTION, 3, {0.0, 0.0, 1e-5}, {2000.0, 2000.0, 1.0}},
     {PLANT_FX_VALVE, 4, {0.0, 0.0, 0.0, 0.05}, {1.0, 1.0, 0.9, 5.0}},
-    {PLANT_FX_LINE, 2, {0.0, 0.05}, {1.2, 1.0}},
+    {PLANT_FX_LINE, 2, {0.0, 0.0}, {1.2, 0.01}},
     {PLANT_FX_LEAK, 1, {0.0}, {1e-5}},
     {PLANT_FX_SENSOR, 4, {0.0, 0.0, -1e5, -0.05}, {10.0, 10.0, 1e5, 0.05}},
     {PLANT_FX_TRUTH + PLANT_FX_THERMAL, 3, {0.01, 0.01, 0.01}, {600.0, 6000.0, 1000.0}},
@@ -285,9 +285,10 @@ static void fx_derivatives(const plant_fx *f, const double *x, double *dx)
         break;
     }
     case PLANT_FX_LINE:
+        /* The compressor's flow reaches the junction after the transport delay q0;
+         * the tube adds its dead volume q1 to the junction (pipe) volume. */
         if (q[0] > 0.0)
             m_c_new = f->mc_delayed;
-        m_s_new = fl.spring_valve * q[1];
         break;
     case PLANT_FX_TRUTH + PLANT_FX_LINE: {
         /* Compressor -> tube volume q0 -> laminar conductance q1 -> junction. */
@@ -313,6 +314,8 @@ static void fx_derivatives(const plant_fx *f, const double *x, double *dx)
     /* Flow corrections: the pressure equations of plant.c with the new flows. */
     dx[PLANT_X_P1] += zn * rt * ((m_c_new - fl.compressor) - (m_s_new - fl.spring_valve) - (m_v_new - fl.vent_valve)) / v1;
     dx[PLANT_X_P2] += zn * rt * (m_s_new - fl.spring_valve) / v2;
+    if (f->fx.kind == PLANT_FX_LINE)
+        dx[PLANT_X_P1] *= v1 / (v1 + q[1]);
 }
 
 static void rk4_step(plant_fx *f, double h)

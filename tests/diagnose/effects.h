@@ -19,7 +19,7 @@
  *              truth:     LuGre (bristle state z)
  *   valve      candidate: pure opening/closing delays, ISO 6358 flow (b, C_out)
  *              truth:     first-order opening fractions, Cd falling with pressure ratio
- *   line       candidate: pure transport delay of the compressor flow, series resistance
+ *   line       candidate: transport delay of the compressor flow, tube dead volume at the junction
  *              truth:     a lumped tube volume with a linear (laminar) conductance
  *   leak       candidate: orifice (eq. 8/9) spring -> ambient
  *              truth:     laminar capillary leak, m = K (P2^2 - Pa^2)

@@ -52,7 +52,7 @@ static void test_every_kind_stays_finite(void **state)
         {PLANT_FX_AREA, {2.0, -50.0, 0.03}},
         {PLANT_FX_FRICTION, {100.0, 50.0, 0.005}},
         {PLANT_FX_VALVE, {0.1, 0.2, 0.3, 0.8}},
-        {PLANT_FX_LINE, {0.2, 0.6}},
+        {PLANT_FX_LINE, {0.2, 3e-4}},
         {PLANT_FX_LEAK, {2e-8}},
         {PLANT_FX_SENSOR, {0.3, 0.1, 2000.0, 0.001}},
         {PLANT_FX_TRUTH + PLANT_FX_THERMAL, {8.0, 300.0, 10.0}},
@@ -88,10 +88,10 @@ static void test_off_is_the_nominal_plant(void **state)
         plant_advance(&ref, 0.01, 10);
     }
     /* "off" values: thermal tau 0, area 0/0/0, friction 0/0, valve 0/0/b 0/scale 1,
-     * line 0/1, leak 0, sensor 0/0/0/0 */
+     * line 0/0, leak 0, sensor 0/0/0/0 */
     static const struct { int kind; double p[PLANT_FX_MAX_PARAMS]; } off[] = {
         {PLANT_FX_THERMAL, {0}}, {PLANT_FX_AREA, {0}}, {PLANT_FX_FRICTION, {0, 0, 0.005}},
-        {PLANT_FX_VALVE, {0, 0, 0, 1.0}}, {PLANT_FX_LINE, {0, 1.0}}, {PLANT_FX_LEAK, {0}},
+        {PLANT_FX_VALVE, {0, 0, 0, 1.0}}, {PLANT_FX_LINE, {0, 0}}, {PLANT_FX_LEAK, {0}},
         {PLANT_FX_SENSOR, {0}},
     };
     for (size_t i = 0; i < sizeof off / sizeof off[0]; i++) {

@@ -62,8 +62,9 @@ EFFECTS = (
     ), "valve opening/closing delays and ISO 6358 flow"),
     Effect("line_delay", 5, (
         Param("delay_s", 0.0, 0.5, 0.0, doc="transport delay of the tube compressor -> spring"),
-        Param("resistance_scale", 0.2, 1.0, 1.0, doc="tube conductance relative to the bare valve"),
-    ), "transport delay and resistance of the compressor-spring tube"),
+        Param("dead_volume_m3", 0.0, 1.0e-3, 0.0,
+              doc="the tube's volume, added to the junction (0..61 in^3)"),
+    ), "transport delay and dead volume of the compressor-spring tube"),
     Effect("leak", 6, (
         Param("leak_area_m2", 1e-10, 3e-7, 0.0, log=True, doc="equivalent orifice area spring -> ambient"),
     ), "leak from the spring to ambient"),
