@@ -58,7 +58,13 @@ def split(t_s, height_m, load_n, tol_m=None):
         j_leave = j_stop
         while j_leave + 1 < len(s) and s[j_leave + 1] <= ext + tol_m:
             j_leave += 1
-        back = np.flatnonzero(s[j_leave:] >= b - tol_m)
+        # back: at the level before the step, or at rest again somewhere in the band
+        # (the controller stops anywhere inside it) after moving off the extreme
+        ahead = max(1, int(round(0.5 / dt)))
+        s_ahead = np.concatenate([s[ahead:], np.full(ahead, s[-1])])
+        resting = np.abs(s_ahead - s) < 0.5 * tol_m
+        done = (s >= b - tol_m) | (resting & (s - ext > 2.0 * tol_m))
+        back = np.flatnonzero(done[j_leave:])
         j_back = j_leave + int(back[0]) if back.size else len(s)
         names = ("drop", "stuck_low", "climb") if up else ("jump", "stuck_high", "return")
         labels[i0:i0 + j_stop] = names[0]
