@@ -1,8 +1,10 @@
 """Fit each candidate effect on calibration runs, score it on held-out runs.
 
 Parameters are fitted in a unit box (log-mapped where the range spans
-decades) with scipy.optimize.least_squares and bounds, from the best of a few
-quasi-random starts, because the on-off plant makes the cost rough.
+decades) with scipy.optimize.least_squares and bounds. The on-off plant makes
+the cost rough, so the cost is first evaluated at 32 quasi-random points (plus
+the "off" point when it lies in the box) and least_squares polishes the best
+four.
 Candidates run in parallel processes, one simulator per process.
 """
 import os
@@ -18,6 +20,7 @@ from . import gap
 from .model import CLOSED_LOOP, REPLAY, make_simulator
 
 RESAMPLE_S = 0.05        # residuals every 50 ms: 20 Hz is plenty for a 0.1-10 s plant
+FAILED_RESIDUAL = 100.0  # normalised residual of a sample the simulation could not produce
 
 
 def choose_mode(run, mode):
@@ -74,7 +77,9 @@ def run_residual(run, trace):
     parts = []
     for s, r in gap.residuals(run, trace).items():
         x = r[::stride] / gap.SCALES[s]
-        x = np.where(np.isfinite(x), x, 0.0)
+        measured = np.isfinite(run.signals[s][::stride])
+        # not measured: no information; measured but the simulation failed (NaN): as bad as it gets
+        x = np.where(measured, np.where(np.isfinite(x), x, FAILED_RESIDUAL), 0.0)
         parts.append(x)
     if not parts:
         return np.zeros(0)
