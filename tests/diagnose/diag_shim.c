@@ -18,6 +18,7 @@
 #include "leveler/hal.h"
 #include "leveler/regmap.h"
 #include "leveler/regmap_addr.h"
+#include "commission.h"
 #include "plant.h"
 #include "simloop.h"
 
@@ -29,60 +30,6 @@ int diag_config_check(const char *path, char *err, int err_len)
 {
     static plant_config cfg;
     return plant_config_load(path, &cfg, err, (size_t)err_len);
-}
-
-static int32_t round_i32(double v)
-{
-    if (v > 2147483647.0)
-        return 2147483647;
-    if (v < -2147483648.0)
-        return (-2147483647 - 1);
-    return (int32_t)lround(v);
-}
-
-static void put_i32(uint16_t *w, int32_t v)
-{
-    uint32_t u = (uint32_t)v;
-    w[0] = (uint16_t)(u >> 16);
-    w[1] = (uint16_t)(u & 0xFFFFu);
-}
-
-static int write_block(uint16_t addr, const uint16_t *w, uint16_t n, char *err, int len)
-{
-    uint16_t reason = 0;
-    if (leveler_regs_write(LEVELER_TABLE_HOLDING_REGISTER, addr, n, w, &reason) != LEVELER_REG_OK) {
-        snprintf(err, (size_t)len, "firmware refused holding %u..%u (reason %u)", addr, addr + n - 1u, reason);
-        return -1;
-    }
-    return 0;
-}
-
-/* The commissioning simloop.c does: calibration, band, algorithm, accumulator charge. */
-static int commission(const plant_config *cfg, char *err, int len)
-{
-    const plant_sensor_params *s = &cfg->sensors;
-    static const uint16_t cal_addr[4] = {LEVELER_HR_CAL_HEIGHT_RAW_LO, LEVELER_HR_CAL_P_SPRING_RAW_LO,
-                                         LEVELER_HR_CAL_P_PIPE_RAW_LO, LEVELER_HR_CAL_P_ACC_RAW_LO};
-    for (int ch = 0; ch < 4; ch++) {
-        uint16_t w[6];
-        w[0] = (uint16_t)lround(ch == 0 ? s->height_lo_counts : s->pressure_lo_counts);
-        w[1] = (uint16_t)lround(ch == 0 ? s->height_hi_counts : s->pressure_hi_counts);
-        put_i32(&w[2], round_i32(ch == 0 ? s->height_lo_m * 1e6 : s->pressure_lo_pa));
-        put_i32(&w[4], round_i32(ch == 0 ? s->height_hi_m * 1e6 : s->pressure_hi_pa));
-        if (write_block(cal_addr[ch], w, 6, err, len) != 0)
-            return -1;
-    }
-    uint16_t band[4];
-    put_i32(&band[0], round_i32(cfg->band_lower_m * 1e6));
-    put_i32(&band[2], round_i32(cfg->band_upper_m * 1e6));
-    if (write_block(LEVELER_HR_BAND_LOWER_UM, band, 4, err, len) != 0)
-        return -1;
-    uint16_t alg = (uint16_t)cfg->algorithm;
-    if (write_block(LEVELER_HR_ALGORITHM, &alg, 1, err, len) != 0)
-        return -1;
-    uint16_t charge[2];
-    put_i32(charge, round_i32(cfg->plant.acc_charge_pa));
-    return write_block(LEVELER_HR_ACC_CHARGE_MAX_PA, charge, 2, err, len);
 }
 
 /* Sensed value -> 12-bit counts over the config's spans (no noise: the blind
@@ -141,7 +88,7 @@ int diag_simulate(const char *config_path, int n, const double *t_s, const doubl
     if (closed) {
         sim_hal_reset();
         leveler_app_init();
-        if (commission(&cfg, err, err_len) != 0)
+        if (sim_commission(&cfg, cfg.algorithm, err, (size_t)err_len) != 0)
             return -1;
     }
     const plant_sensor_params *s = &cfg.sensors;
