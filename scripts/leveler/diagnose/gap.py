@@ -31,18 +31,6 @@ def residuals(run, trace):
     return out
 
 
-def normalised_rms(run, trace, mask=None):
-    """sqrt(mean over signals of (RMS/scale)^2): the one-number gap."""
-    res = residuals(run, trace)
-    acc = []
-    for s, r in res.items():
-        m = np.isfinite(r) if mask is None else (np.isfinite(r) & mask)
-        if m.sum() == 0:
-            continue
-        acc.append(np.mean((r[m] / SCALES[s]) ** 2))
-    return float(np.sqrt(np.mean(acc))) if acc else float("nan")
-
-
 def gap_over_runs(runs, traces, labels=None):
     """Pooled normalised gap and per-signal RMS in display units over several runs."""
     sq = {}
