@@ -145,26 +145,43 @@ static bool range_in_table(leveler_table table, uint16_t start, uint16_t quantit
     return (uint32_t)start + quantity <= (uint32_t)leveler_regs_table_size(table);
 }
 
+/* The checks every read request (FC 01..04, PDU: fc, start(2), quantity(2))
+ * goes through, in the specification's order: no reply to a broadcast, then
+ * length and quantity (exception 03), then the address range (02). Returns
+ * true with *start and *quantity set when the read may go ahead; otherwise
+ * the exception (if any) is already in out. */
+static bool check_read_request(const uint8_t *pdu, size_t pdu_len, bool broadcast, leveler_table table,
+                               uint16_t max_quantity, pdu_out *out, uint16_t *start, uint16_t *quantity)
+{
+    const uint8_t fc = pdu[0];
+    if (broadcast) {
+        return false; /* reads are not broadcast */
+    }
+    if (pdu_len != 5u) {
+        reply_exception(out, fc, EXC_ILLEGAL_DATA_VALUE);
+        return false;
+    }
+    *start = be16(&pdu[1]);
+    *quantity = be16(&pdu[3]);
+    if (*quantity < 1u || *quantity > max_quantity) {
+        reply_exception(out, fc, EXC_ILLEGAL_DATA_VALUE);
+        return false;
+    }
+    if (!range_in_table(table, *start, *quantity)) {
+        reply_exception(out, fc, EXC_ILLEGAL_DATA_ADDRESS);
+        return false;
+    }
+    return true;
+}
+
 /* FC 01 / 02. Request PDU: fc, start(2), quantity(2). */
 static void read_bits(const uint8_t *pdu, size_t pdu_len, bool broadcast, leveler_table table,
                       pdu_out *out)
 {
     const uint8_t fc = pdu[0];
-    if (broadcast) {
-        return; /* reads are not broadcast */
-    }
-    if (pdu_len != 5u) {
-        reply_exception(out, fc, EXC_ILLEGAL_DATA_VALUE);
-        return;
-    }
-    const uint16_t start = be16(&pdu[1]);
-    const uint16_t quantity = be16(&pdu[3]);
-    if (quantity < 1u || quantity > MAX_READ_BITS) {
-        reply_exception(out, fc, EXC_ILLEGAL_DATA_VALUE);
-        return;
-    }
-    if (!range_in_table(table, start, quantity)) {
-        reply_exception(out, fc, EXC_ILLEGAL_DATA_ADDRESS);
+    uint16_t start = 0;
+    uint16_t quantity = 0;
+    if (!check_read_request(pdu, pdu_len, broadcast, table, MAX_READ_BITS, out, &start, &quantity)) {
         return;
     }
     if (quantity > SCRATCH_ITEMS) {
@@ -200,21 +217,9 @@ static void read_registers(const uint8_t *pdu, size_t pdu_len, bool broadcast,
                            leveler_table table, pdu_out *out)
 {
     const uint8_t fc = pdu[0];
-    if (broadcast) {
-        return;
-    }
-    if (pdu_len != 5u) {
-        reply_exception(out, fc, EXC_ILLEGAL_DATA_VALUE);
-        return;
-    }
-    const uint16_t start = be16(&pdu[1]);
-    const uint16_t quantity = be16(&pdu[3]);
-    if (quantity < 1u || quantity > MAX_READ_REGISTERS) {
-        reply_exception(out, fc, EXC_ILLEGAL_DATA_VALUE);
-        return;
-    }
-    if (!range_in_table(table, start, quantity)) {
-        reply_exception(out, fc, EXC_ILLEGAL_DATA_ADDRESS);
+    uint16_t start = 0;
+    uint16_t quantity = 0;
+    if (!check_read_request(pdu, pdu_len, broadcast, table, MAX_READ_REGISTERS, out, &start, &quantity)) {
         return;
     }
     const size_t byte_count = (size_t)quantity * 2u; /* <= 250 */
