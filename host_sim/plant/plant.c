@@ -132,7 +132,7 @@ void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PL
                   p->motor_torque_coefficient * p->compressor_capacity_m3_per_rad * (p1 - pa);
     else if (omega < -1e-6)
         torque -= p->motor_damping_nm_s * omega;
-    alpha = torque / p->motor_inertia_kg_m2;
+    alpha = torque * pl->inv_inertia;
 
     /* Compressor delivers only while the motor is switched on and turning. */
     double m_c = 0.0;
@@ -140,7 +140,7 @@ void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PL
         double q = p->compressor_capacity_m3_per_rad * omega;
         if (p1 > pa)
             q -= p->compressor_leakage_m3_per_pa_s * (p1 - pa);
-        m_c = p1 * q / pl->rt;
+        m_c = p1 * q * pl->inv_rt;
     }
 
     /* Spring solenoid valve: its own Cd for each direction. Closed valves cost nothing. */
@@ -182,7 +182,7 @@ void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PL
      * to the flows, force and derivatives here, and their states after
      * PLANT_X_VEL. */
 
-    double d_p1 = pl->zn * pl->rt * (m_c - m_s - m_v - m_a) / p->pipe_volume_m3;
+    double d_p1 = pl->zn_rt_per_v1 * (m_c - m_s - m_v - m_a);
     double d_p2 = pl->zn * (pl->rt * m_s - p2 * dv2) / v2;
     double d_p3 = 0.0;
     if (m_a != 0.0) {
@@ -201,7 +201,7 @@ void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PL
     dxdt[PLANT_X_P3] = d_p3;
     dxdt[PLANT_X_V2] = dv2;
     dxdt[PLANT_X_Y] = vel;
-    dxdt[PLANT_X_VEL] = force / pl->mass_kg;
+    dxdt[PLANT_X_VEL] = force * pl->inv_mass;
     if (flows) {
         flows->compressor = m_c;
         flows->spring_valve = m_s;
@@ -214,6 +214,7 @@ static void update_load(plant *pl, double load_n)
 {
     pl->load_cached_n = load_n;
     pl->mass_kg = load_n / PLANT_STANDARD_GRAVITY + pl->p.extra_mass_kg;
+    pl->inv_mass = 1.0 / pl->mass_kg;
     area_coefficients(&pl->p, load_n, &pl->area_cc1_m2, &pl->area_cc2_m2_per_m);
     pl->band = plant_band_for_load(&pl->p, load_n);
 }
@@ -227,6 +228,10 @@ void plant_init(plant *pl, const plant_params *p)
     pl->crit_ratio = pow(2.0 / (k + 1.0), k / (k - 1.0));
     pl->rt = p->gas_constant_j_per_kg_k * p->temperature_k;
     pl->zn = p->compressibility * p->polytropic_n;
+    /* reciprocals: the derivatives multiply (they run 4x per RK4 step) */
+    pl->inv_rt = 1.0 / pl->rt;
+    pl->inv_inertia = 1.0 / p->motor_inertia_kg_m2;
+    pl->zn_rt_per_v1 = pl->zn * pl->rt / p->pipe_volume_m3;
     pl->flow_subsonic = sqrt(2.0 * k / ((k - 1.0) * pl->rt));
     pl->flow_choked = sqrt(k / pl->rt) * pow(2.0 / (k + 1.0), (k + 1.0) / (2.0 * (k - 1.0)));
     pl->spring_valve_area_m2 = PLANT_PI / 4.0 * p->spring_valve_diameter_m * p->spring_valve_diameter_m;

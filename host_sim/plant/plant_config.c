@@ -116,6 +116,10 @@ static const field fields[] = {
     {"initial", "p_pipe", K_PABS, T_DOUBLE, PP(init_p_pipe_pa), 50e3, 2e6},
     {"initial", "p_spring", K_PABS, T_DOUBLE, PP(init_p_spring_pa), 50e3, 2e6},
     {"initial", "motor_speed", K_ANGVEL, T_DOUBLE, PP(init_motor_speed_rad_per_s), 0, 1000},
+    {"initial", "compressor", K_INT, T_INT, CF(init_compressor), 0, 1},
+    {"initial", "spring_valve", K_INT, T_INT, CF(init_spring_valve), 0, 1},
+    {"initial", "vent_valve", K_INT, T_INT, CF(init_vent_valve), 0, 1},
+    {"initial", "acc_valve", K_INT, T_INT, CF(init_acc_valve), 0, 1},
     {"scenario", "base_load", K_FORCE, T_DOUBLE, CF(base_load_n), 0, 1e5},
     {"scenario", "step_load", K_FORCE, T_DOUBLE, CF(step_load_n), -1e5, 1e5},
     {"scenario", "step_on", K_TIME, T_DOUBLE, CF(step_on_s), 0, 1e6},
@@ -514,12 +518,16 @@ void plant_config_defaults(plant_config *c)
     p->init_p_pipe_pa = 89.0 * psi;
     p->init_p_spring_pa = 89.0 * psi;
     p->init_motor_speed_rad_per_s = 83.2649;
+    c->init_compressor = 1; /* the program's motor := true; solenoid := true */
+    c->init_spring_valve = 1;
+    c->init_vent_valve = 0;
+    c->init_acc_valve = 0;
 
     plant_sensor_params *s = &c->sensors;
     s->height_lo_counts = 410;
     s->height_hi_counts = 3686;
-    s->height_lo_m = 0.25;
-    s->height_hi_m = 0.50;
+    s->height_lo_m = (15.6 - 1915.5 * 0.2 / 66.0) * in; /* band edges on code transitions (thesis-900lb.ini) */
+    s->height_hi_m = (15.6 + 1360.5 * 0.2 / 66.0) * in;
     s->pressure_lo_counts = 410;
     s->pressure_hi_counts = 3686;
     s->pressure_lo_pa = 101325;
@@ -535,7 +543,7 @@ void plant_config_defaults(plant_config *c)
     c->step_on_s = 5.0;
     c->step_off_s = 35.0;
     c->end_s = 55.0;
-    c->substeps_per_tick = 1; /* convergence study: tests/sim/test_acceptance.py */
+    c->substeps_per_tick = 2; /* convergence study: tests/sim/test_acceptance.py */
     snprintf(c->name, sizeof c->name, "thesis-900lb");
 }
 

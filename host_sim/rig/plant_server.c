@@ -14,6 +14,10 @@
  *                          of 10) before the reply; ignored with --clock realtime
  *   coils 0..3             compressor, spring valve, vent valve, accumulator valve
  *
+ * Start: the coils hold the config's [initial] actuators and the module clock
+ * starts at 10 ms, the first tick already run under them (the rig was running
+ * when the controller took over; leveler-sim does the same).
+ *
  * Load schedule: the config's [scenario]; the load in force over each 10 ms
  * step is the one at the start of that step. --clock realtime advances 10 ms
  * per 10 ms of CLOCK_MONOTONIC. The process ends on SIGINT/SIGTERM, or after
@@ -152,7 +156,14 @@ int main(int argc, char **argv)
         fprintf(stderr, "leveler-plant-server: %s\n", modbus_strerror(errno));
         return 1;
     }
-    read_coils(&sp);
+    /* The rig is already running when the controller takes over: the coils
+     * start as the config's [initial] actuators and the first tick runs under
+     * them, so the controller's first scan is at 10 ms (as leveler-sim). */
+    sp.map->tab_bits[0] = (uint8_t)sp.cfg.init_compressor;
+    sp.map->tab_bits[1] = (uint8_t)sp.cfg.init_spring_valve;
+    sp.map->tab_bits[2] = (uint8_t)sp.cfg.init_vent_valve;
+    sp.map->tab_bits[3] = (uint8_t)sp.cfg.init_acc_valve;
+    advance_one_tick(&sp);
     publish(&sp);
 
     int listen_fd = modbus_tcp_listen(ctx, MAX_CLIENTS);

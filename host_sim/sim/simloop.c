@@ -26,6 +26,15 @@ static void fill_row(runlog_row *row, const plant *pl, double t_s, const bool ou
     row->acc_valve = out[HAL_OUT_ACC_VALVE];
 }
 
+void sim_initial_outputs(const plant_config *cfg, bool out[5])
+{
+    memset(out, 0, 5 * sizeof out[0]);
+    out[HAL_OUT_COMPRESSOR] = cfg->init_compressor != 0;
+    out[HAL_OUT_SPRING_VALVE] = cfg->init_spring_valve != 0;
+    out[HAL_OUT_VENT_VALVE] = cfg->init_vent_valve != 0;
+    out[HAL_OUT_ACC_VALVE] = cfg->init_acc_valve != 0;
+}
+
 int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
 {
     const plant_config *cfg = o->config;
@@ -66,12 +75,20 @@ int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
 
     for (uint64_t k = 0;; k++) {
         double t = (double)k * tick_s;
-        /* sense and control at t */
-        plant_sensor_counts(&pl, &cfg->sensors, rngp, counts);
-        sim_hal_set_counts(counts);
-        sim_hal_set_time_ms((uint32_t)(k * tick_ms));
-        leveler_app_tick();
-        sim_hal_get_outputs(out);
+        if (k == 0) {
+            /* The run starts from a rig already running: the first tick keeps
+             * the config's [initial] actuators and the firmware first decides
+             * at the end of it, as Appendix B's controller does after its first
+             * step. */
+            sim_initial_outputs(cfg, out);
+        } else {
+            /* sense and control at t */
+            plant_sensor_counts(&pl, &cfg->sensors, rngp, counts);
+            sim_hal_set_counts(counts);
+            sim_hal_set_time_ms((uint32_t)(k * tick_ms));
+            leveler_app_tick();
+            sim_hal_get_outputs(out);
+        }
         /* the load for the interval starting at t (half a tick of slack against rounding) */
         while (step_i + 1 < nsteps && steps[step_i + 1].t_s <= t + 0.5 * tick_s)
             step_i++;

@@ -96,7 +96,14 @@ int diag_simulate(const char *config_path, int n, const double *t_s, const doubl
         double sensed[4];
         plant_fx_sensed(&f, sensed);
         plant_inputs in = {false, false, false, false, load_n[i]};
-        if (closed) {
+        if (closed && i == 0) {
+            /* the first tick under the config's [initial] actuators, the
+             * firmware's first decision at its end (host_sim/sim/simloop.c) */
+            in.compressor = cfg.init_compressor != 0;
+            in.spring_valve = cfg.init_spring_valve != 0;
+            in.vent_valve = cfg.init_vent_valve != 0;
+            in.acc_valve = cfg.init_acc_valve != 0;
+        } else if (closed) {
             uint16_t counts[4];
             counts[0] = to_counts(sensed[0], s->height_lo_m, s->height_hi_m, s->height_lo_counts, s->height_hi_counts);
             for (int c = 1; c < 4; c++)

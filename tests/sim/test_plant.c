@@ -1,8 +1,9 @@
 /*
  * Plant model tests (cmocka): conservation, equalisation, valve-flow
  * continuity at the critical ratio, RK4 order, config-file errors, the plant
- * under an exact double-precision copy of the program's controller, and the
- * accumulator's benefit with the firmware in the loop.
+ * under an exact double-precision copy of the program's controller, the
+ * firmware in the loop switching on the same ticks as that controller, and
+ * the accumulator's benefit with the firmware in the loop.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -234,15 +235,16 @@ static void test_config_units_and_include(void **state)
 
 /* ---- the plant under the program's own controller (exact heights) ---- */
 
-static void program_controller(const plant *pl, plant_inputs *in)
+/* Appendix B's on_off without accumulator, on the exact height (band from the config). */
+static void program_controller(const plant_config *cfg, const plant *pl, plant_inputs *in)
 {
     double y = pl->x[PLANT_X_Y];
     in->acc_valve = false;
-    if (y < 15.6 * IN) {
+    if (y < cfg->band_lower_m) {
         in->compressor = true;
         in->spring_valve = true;
         in->vent_valve = false;
-    } else if (y > 15.8 * IN) {
+    } else if (y > cfg->band_upper_m) {
         in->compressor = false;
         in->spring_valve = true;
         in->vent_valve = true;
@@ -251,40 +253,103 @@ static void program_controller(const plant *pl, plant_inputs *in)
     }
 }
 
-/* Appendix B's loop: step 0.01 s, then the controller on exact y. With the
- * parameter-table values this reproduces the published 900 lb figures,
- * including the 17.54 in top that the firmware run misses by ~0.17 in (its
- * 12-bit height reading crosses 15.8 in ~0.25 s earlier, see
- * tests/sim/test_acceptance.py). */
+#define PROGRAM_STEPS 5500 /* 55 s of 0.01 s steps */
+
+typedef struct {
+    double y_m[PROGRAM_STEPS + 1];
+    bool out[PROGRAM_STEPS + 1][3]; /* compressor, solenoid, vent over the step from t_k */
+} program_run;
+
+/* Appendix B's loop: the initial booleans (motor, solenoid on) over the first
+ * step, then after every 0.01 s the controller on the exact y. The plant
+ * advances each 0.01 s in `substeps` RK4 steps (the program: 1; 0 = the
+ * config's [solver] substeps_per_tick). */
+static void run_program(const char *config, int substeps, program_run *r)
+{
+    static plant pl;
+    static plant_config cfg;
+    char err[1024];
+    assert_int_equal(plant_config_load(config, &cfg, err, sizeof err), 0);
+    plant_init(&pl, &cfg.plant);
+    plant_inputs in = {cfg.init_compressor != 0, cfg.init_spring_valve != 0, cfg.init_vent_valve != 0, false, 0.0};
+    for (int k = 0; k <= PROGRAM_STEPS; k++) {
+        double t = k * 0.01;
+        if (k > 0)
+            program_controller(&cfg, &pl, &in);
+        in.load_n = cfg.base_load_n + ((t >= cfg.step_on_s - 0.005 && t < cfg.step_off_s - 0.005) ? cfg.step_load_n : 0.0);
+        r->y_m[k] = pl.x[PLANT_X_Y];
+        r->out[k][0] = in.compressor;
+        r->out[k][1] = in.spring_valve;
+        r->out[k][2] = in.vent_valve;
+        plant_set_inputs(&pl, &in);
+        plant_advance(&pl, 0.01, substeps > 0 ? substeps : cfg.substeps_per_tick);
+    }
+}
+
+/* With the parameter-table values the program's loop, its own 0.01 s step
+ * included, reproduces the published 900 lb figures: lowest 14.53 in, highest
+ * 17.54 in. */
 static void test_program_controller_900(void **state)
 {
     (void)state;
-    static plant pl;
-    static plant_config cfg;
-    thesis_plant(&pl, &cfg);
-    plant_inputs in = {true, true, false, false, 900.0 * LBF};
-    double ymin = 1.0, ymax = 0.0, p2_at_min = 0.0, p2_at_max = 0.0;
-    for (int k = 0; k < 5500; k++) {
+    static program_run r;
+    run_program(CONFIG_DIR "/thesis-900lb.ini", 1, &r);
+    double ymin = 1.0, ymax = 0.0;
+    for (int k = 0; k <= PROGRAM_STEPS; k++) {
         double t = k * 0.01;
-        in.load_n = (t >= 4.995 && t < 34.995) ? 1100.0 * LBF : 900.0 * LBF;
-        plant_set_inputs(&pl, &in);
-        plant_step(&pl, 0.01);
-        program_controller(&pl, &in);
-        double y = pl.x[PLANT_X_Y];
-        if (t > 5.0 && t < 35.0 && y < ymin) {
-            ymin = y;
-            p2_at_min = pl.x[PLANT_X_P2];
-        }
-        if (t > 35.0 && y > ymax) {
-            ymax = y;
-            p2_at_max = pl.x[PLANT_X_P2];
-        }
+        if (t > 5.0 && t < 35.0 && r.y_m[k] < ymin)
+            ymin = r.y_m[k];
+        if (t > 35.0 && r.y_m[k] > ymax)
+            ymax = r.y_m[k];
     }
-    print_message("program controller: lowest %.3f in (P2 %.1f psia), highest %.3f in (P2 %.1f psia)\n", ymin / IN,
-                  p2_at_min / PSI, ymax / IN, p2_at_max / PSI);
+    print_message("program controller: lowest %.3f in, highest %.3f in\n", ymin / IN, ymax / IN);
     assert_true(fabs(ymin / IN - 14.53) < 0.05);
     assert_true(fabs(ymax / IN - 17.54) < 0.05);
-    assert_true(fabs(p2_at_max / PSI - 84.0) < 2.0);
+}
+
+/* The firmware in the loop (fixed point, 12-bit height, thesis configs whose
+ * band edges lie on code transitions) switches exactly as the program's
+ * controller on the exact double-precision height: same actuators at every
+ * one of the 5501 ticks, so the same trajectory. */
+static void firmware_equals_program(const char *config)
+{
+    static program_run r;
+    run_program(config, 0, &r);
+    static plant_config cfg;
+    char err[1024];
+    assert_int_equal(plant_config_load(config, &cfg, err, sizeof err), 0);
+    static runlog_row rows[PROGRAM_STEPS + 1];
+    sim_options o = {.config = &cfg, .rows = rows, .rows_cap = PROGRAM_STEPS + 1};
+    static sim_result res;
+    assert_int_equal(sim_run(&o, &res, err, sizeof err), 0);
+    assert_int_equal(res.rows, PROGRAM_STEPS + 1);
+    int switches = 0;
+    double worst_dy = 0.0;
+    for (int k = 0; k <= PROGRAM_STEPS; k++) {
+        if (rows[k].compressor != r.out[k][0] || rows[k].solenoid != r.out[k][1] || rows[k].vent != r.out[k][2])
+            fail_msg("%s: t = %.2f s: firmware %d%d%d, program %d%d%d (compressor, solenoid, vent)", config,
+                     rows[k].t_s, rows[k].compressor, rows[k].solenoid, rows[k].vent, r.out[k][0], r.out[k][1],
+                     r.out[k][2]);
+        if (k > 0 && memcmp(r.out[k], r.out[k - 1], sizeof r.out[k]) != 0)
+            switches++;
+        worst_dy = fmax(worst_dy, fabs(rows[k].height_m - r.y_m[k]));
+    }
+    print_message("%s: %d switchings, all on the same tick; largest height difference %.3g m\n", config, switches,
+                  worst_dy);
+    assert_true(switches >= 4); /* charge after the step, stop, vent after the removal, stop */
+    assert_true(worst_dy < 1e-9);
+}
+
+static void test_firmware_equals_program_900(void **state)
+{
+    (void)state;
+    firmware_equals_program(CONFIG_DIR "/thesis-900lb.ini");
+}
+
+static void test_firmware_equals_program_1000(void **state)
+{
+    (void)state;
+    firmware_equals_program(CONFIG_DIR "/thesis-1000lb.ini");
 }
 
 /* ---- firmware in the loop: the accumulator shortens the return ---- */
@@ -342,6 +407,8 @@ int main(void)
         cmocka_unit_test(test_config_errors),
         cmocka_unit_test(test_config_units_and_include),
         cmocka_unit_test(test_program_controller_900),
+        cmocka_unit_test(test_firmware_equals_program_900),
+        cmocka_unit_test(test_firmware_equals_program_1000),
         cmocka_unit_test(test_accumulator_faster),
     };
     return cmocka_run_group_tests(tests, setup, teardown);

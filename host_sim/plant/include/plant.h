@@ -124,6 +124,11 @@ typedef struct {
     double step_off_s;
     double end_s;
     int substeps_per_tick;
+    /* Actuators over the first tick, before the controller's first decision:
+     * a run starts from a rig already running (Appendix B starts mid-charge,
+     * motor := true, solenoid := true, and its controller first acts after the
+     * first step). 0 or 1: compressor, spring valve, vent valve, accumulator valve. */
+    int init_compressor, init_spring_valve, init_vent_valve, init_acc_valve;
     char name[PLANT_NAME_MAX];
     char path[PLANT_PATH_MAX];
 } plant_config;
@@ -176,6 +181,7 @@ typedef struct {
     /* cached from p and in.load_n (plant_set_inputs) */
     double load_cached_n;
     double mass_kg;
+    double inv_mass;
     double area_cc1_m2;
     double area_cc2_m2_per_m;
     const plant_hysteresis_band *band;
@@ -187,6 +193,8 @@ typedef struct {
     double spring_valve_area_m2, vent_valve_area_m2, acc_valve_area_m2;
     double rt;                /* R T */
     double zn;                /* Z n */
+    double inv_rt, inv_inertia;
+    double zn_rt_per_v1;      /* Z n R T / V1 */
 } plant;
 
 /* State = the params' initial state, inputs all off at the initial load of 0. */

@@ -5,8 +5,10 @@
  * Each 10 ms tick: the load schedule sets the load, the plant integrates
  * 10 ms with RK4 (config [solver] substeps_per_tick fixed sub-steps) under the
  * outputs the firmware set last, the sensors turn the state into ADC counts,
- * then leveler_app_tick() runs. The simulator owns time: hal_now_ms() is
- * simulated milliseconds. Runs are deterministic.
+ * then leveler_app_tick() runs. The first tick (0 to 10 ms) runs under the
+ * config's [initial] actuators and the firmware's first tick is at 10 ms, as
+ * Appendix B's controller first acts after its first step. The simulator owns
+ * time: hal_now_ms() is simulated milliseconds. Runs are deterministic.
  *
  * The firmware is one set of globals, so one simulation runs at a time per
  * process (sim_run is not reentrant).
@@ -48,11 +50,15 @@ typedef struct {
 } sim_options;
 
 typedef struct {
-    size_t ticks;         /* firmware ticks run (t = 0 included) */
+    size_t ticks;         /* 10 ms ticks simulated (t = 0 included; the firmware runs from the second) */
     size_t rows;          /* rows stored in the buffer */
     double end_s;
     plant final_plant;    /* plant at the end */
 } sim_result;
+
+/* The actuators over the first tick, from the config's [initial] section
+ * (indexed by hal_output; the status LED off). */
+void sim_initial_outputs(const plant_config *cfg, bool out[5]);
 
 /* Run a whole scenario. 0 on success; -1 with a message in err (refused
  * setting, log write error). */
