@@ -68,34 +68,22 @@ double plant_down_limit_pag(const plant_hysteresis_band *b, double y_m)
     return plant_up_limit_pag(b, y_m) - b->down_offset_pa;
 }
 
-void plant_diaphragm_volume(double p3_pa, double *v_m3, double *dv_dp_m3_per_pa)
+void plant_diaphragm_volume(const plant_params *p, double p3_pa, double *v_m3, double *dv_dp_m3_per_pa)
 {
-    /* Figure 22 (Appendix B), P3 in psia, V in in^3; continuous at the breakpoints. */
-    static const double in3 = PLANT_M_PER_IN * PLANT_M_PER_IN * PLANT_M_PER_IN;
-    double p = p3_pa / PLANT_PA_PER_PSI;
-    double v, dv;
-    if (p < 40.0) {
-        v = 20.0;
-        dv = 0.0;
-    } else if (p < 106.7) {
-        v = 0.1546 * p + 13.8176;
-        dv = 0.1546;
-    } else if (p < 112.7) {
-        v = 75.531097 * p - 8028.85463;
-        dv = 75.531097;
-    } else {
-        v = 0.75 * p + 398.975;
-        dv = 0.75;
-    }
-    *v_m3 = v * in3;
-    *dv_dp_m3_per_pa = dv * in3 / PLANT_PA_PER_PSI;
+    /* Piecewise linear in P3 (the config's segments; thesis: figure 22 as the
+     * program has it, continuous at its breakpoints). */
+    int i = 0;
+    while (i < p->diaphragm_segments - 1 && p3_pa >= p->diaphragm_break_pa[i])
+        i++;
+    *dv_dp_m3_per_pa = p->diaphragm_slope_m3_per_pa[i];
+    *v_m3 = p->diaphragm_slope_m3_per_pa[i] * p3_pa + p->diaphragm_intercept_m3[i];
 }
 
 double plant_acc_volume_m3(const plant *pl)
 {
     if (pl->p.acc_type == PLANT_ACC_DIAPHRAGM) {
         double v, dv;
-        plant_diaphragm_volume(pl->x[PLANT_X_P3], &v, &dv);
+        plant_diaphragm_volume(&pl->p, pl->x[PLANT_X_P3], &v, &dv);
         return v;
     }
     return pl->p.acc_volume_m3;
@@ -188,7 +176,7 @@ void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PL
     if (m_a != 0.0) {
         if (p->acc_type == PLANT_ACC_DIAPHRAGM) {
             double v3, dv3;
-            plant_diaphragm_volume(p3, &v3, &dv3);
+            plant_diaphragm_volume(p, p3, &v3, &dv3);
             d_p3 = pl->rt * m_a / (v3 / pl->zn + p3 * dv3);
         } else {
             d_p3 = pl->zn * pl->rt * m_a / p->acc_volume_m3;

@@ -146,6 +146,8 @@ static const field fields[] = {
 static const char *const special_keys[][2] = {
     {"config", "include"}, {"config", "name"}, {"accumulator", "type"},
     {"spring", "area_cc1_poly_in2"}, {"spring", "area_cc2_poly_in2_per_in"},
+    {"accumulator", "diaphragm_breaks_psia"}, {"accumulator", "diaphragm_slopes_in3_per_psi"},
+    {"accumulator", "diaphragm_intercepts_in3"},
 };
 #define SPECIAL_COUNT (sizeof special_keys / sizeof special_keys[0])
 #define SLOT_COUNT (FIELD_COUNT * PLANT_MAX_BANDS + SPECIAL_COUNT)
@@ -331,6 +333,48 @@ static int handle_special(file_ctx *fc, const char *section, const char *name, c
         memcpy(dst, tmp, sizeof(double) * (size_t)n);
         *cnt = n;
         return 1;
+    }
+    if (strcmp(section, "accumulator") == 0 && strncmp(name, "diaphragm_", 10) == 0) {
+        /* Thesis units, converted to SI here; counts are checked together in plant_config_check. */
+        static const double in3 = PLANT_M_PER_IN * PLANT_M_PER_IN * PLANT_M_PER_IN;
+        plant_params *p = &cfg->plant;
+        double tmp[PLANT_MAX_DIAPHRAGM_SEGMENTS];
+        int n;
+        if (strcmp(name, "diaphragm_breaks_psia") == 0) {
+            if (parse_list(value, tmp, PLANT_MAX_DIAPHRAGM_SEGMENTS - 1, &n) != 0) {
+                fail(fc, section, name, value, "expected 1..%d pressures, psia, rising", PLANT_MAX_DIAPHRAGM_SEGMENTS - 1);
+                return 0;
+            }
+            for (int i = 0; i < n; i++) {
+                if (!(tmp[i] > 0.0 && tmp[i] < 300.0) || (i > 0 && !(tmp[i] > tmp[i - 1]))) {
+                    fail(fc, section, name, value, "break %d: %g psia; breaks must rise, each in (0, 300) psia", i + 1,
+                         tmp[i]);
+                    return 0;
+                }
+                p->diaphragm_break_pa[i] = tmp[i] * PLANT_PA_PER_PSI;
+            }
+            p->diaphragm_segments = n + 1;
+            return 1;
+        }
+        int slope = strcmp(name, "diaphragm_slopes_in3_per_psi") == 0;
+        if (slope || strcmp(name, "diaphragm_intercepts_in3") == 0) {
+            if (parse_list(value, tmp, PLANT_MAX_DIAPHRAGM_SEGMENTS, &n) != 0) {
+                fail(fc, section, name, value, "expected 1..%d numbers, one per segment", PLANT_MAX_DIAPHRAGM_SEGMENTS);
+                return 0;
+            }
+            for (int i = 0; i < n; i++) {
+                if (slope && !(tmp[i] >= 0.0 && tmp[i] <= 1000.0)) {
+                    fail(fc, section, name, value, "segment %d: %g in^3/psi out of range [0, 1000]", i + 1, tmp[i]);
+                    return 0;
+                }
+                if (slope)
+                    p->diaphragm_slope_m3_per_pa[i] = tmp[i] * in3 / PLANT_PA_PER_PSI;
+                else
+                    p->diaphragm_intercept_m3[i] = tmp[i] * in3;
+            }
+            *(slope ? &p->diaphragm_slope_count : &p->diaphragm_intercept_count) = n;
+            return 1;
+        }
     }
     return -1; /* not special */
 }
@@ -518,6 +562,18 @@ void plant_config_defaults(plant_config *c)
     p->init_p_pipe_pa = 89.0 * psi;
     p->init_p_spring_pa = 89.0 * psi;
     p->init_motor_speed_rad_per_s = 83.2649;
+    /* diaphragm accumulator, figure 22 as Appendix B has it (psia -> in^3) */
+    static const double breaks_psia[] = {40.0, 106.7, 112.7};
+    static const double slopes[] = {0.0, 0.1546, 75.531097, 0.75};
+    static const double intercepts[] = {20.0, 13.8176, -8028.85463, 398.975};
+    p->diaphragm_segments = 4;
+    p->diaphragm_slope_count = p->diaphragm_intercept_count = 4;
+    for (int i = 0; i < 4; i++) {
+        if (i < 3)
+            p->diaphragm_break_pa[i] = breaks_psia[i] * psi;
+        p->diaphragm_slope_m3_per_pa[i] = slopes[i] * in * in * in / psi;
+        p->diaphragm_intercept_m3[i] = intercepts[i] * in * in * in;
+    }
     c->init_compressor = 1; /* the program's motor := true; solenoid := true */
     c->init_spring_valve = 1;
     c->init_vent_valve = 0;
@@ -579,6 +635,31 @@ int plant_config_check(const plant_config *c, char *err, size_t len)
     if (c->sensors.pressure_lo_counts == c->sensors.pressure_hi_counts ||
         c->sensors.pressure_lo_pa == c->sensors.pressure_hi_pa)
         return cfail(err, len, c, "[sensors] pressure span is empty");
+    if (p->diaphragm_slope_count != p->diaphragm_segments || p->diaphragm_intercept_count != p->diaphragm_segments)
+        return cfail(err, len, c,
+                     "[accumulator] diaphragm_breaks_psia gives %d segments, but diaphragm_slopes_in3_per_psi has %d "
+                     "and diaphragm_intercepts_in3 %d values (one per segment)",
+                     p->diaphragm_segments, p->diaphragm_slope_count, p->diaphragm_intercept_count);
+    for (int i = 0; i < p->diaphragm_segments; i++) {
+        /* V must stay positive over the segment and join its neighbour (air in the
+         * accumulator is P3 V: a jump in V would create or destroy air) */
+        double lo = i == 0 ? p->ambient_pa * 0.5 : p->diaphragm_break_pa[i - 1];
+        double hi = i == p->diaphragm_segments - 1 ? 2e6 : p->diaphragm_break_pa[i];
+        double v_lo = p->diaphragm_slope_m3_per_pa[i] * lo + p->diaphragm_intercept_m3[i];
+        double v_hi = p->diaphragm_slope_m3_per_pa[i] * hi + p->diaphragm_intercept_m3[i];
+        if (!(v_lo > 1e-7 && v_hi > 1e-7))
+            return cfail(err, len, c, "[accumulator] diaphragm segment %d: volume %.4g in^3 at %.4g psia (must stay > 0)",
+                         i + 1, fmin(v_lo, v_hi) / pow(PLANT_M_PER_IN, 3), (v_lo < v_hi ? lo : hi) / PLANT_PA_PER_PSI);
+        if (i + 1 < p->diaphragm_segments) {
+            double v_next = p->diaphragm_slope_m3_per_pa[i + 1] * hi + p->diaphragm_intercept_m3[i + 1];
+            if (fabs(v_next - v_hi) > 1e-3 * fmax(v_hi, v_next))
+                return cfail(err, len, c,
+                             "[accumulator] diaphragm segments %d and %d meet at %.6g psia with %.6g and %.6g in^3 "
+                             "(must join within 0.1 %%)",
+                             i + 1, i + 2, hi / PLANT_PA_PER_PSI, v_hi / pow(PLANT_M_PER_IN, 3),
+                             v_next / pow(PLANT_M_PER_IN, 3));
+        }
+    }
     if (c->step_on_s > c->step_off_s)
         return cfail(err, len, c, "[scenario] step_on must not be after step_off");
     /* The effective area must stay physical over the range the fit was made for

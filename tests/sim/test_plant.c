@@ -193,6 +193,15 @@ static void test_config_errors(void **state)
     expect_error("[spring]\nvolume_in3 = 270\nvolume_m3 = 0.004\n", "bad.ini:3:", "given twice");
     expect_error("[spring]\nvolume_gallons = 1\n", "bad.ini:2: [spring] volume_gallons", "volume_m3");
     expect_error("[spring]\ncolour = red\n", "bad.ini:2: [spring] colour", "unknown key");
+    /* the diaphragm curve */
+    expect_error("[accumulator]\ndiaphragm_breaks_psia = 40 30\n", "bad.ini:2: [accumulator] diaphragm_breaks_psia",
+                 "breaks must rise");
+    expect_error("[accumulator]\ndiaphragm_breaks_psia = 40 106.7\n", "diaphragm_breaks_psia gives 3 segments",
+                 "diaphragm_slopes_in3_per_psi has 4");
+    expect_error("[accumulator]\ndiaphragm_intercepts_in3 = 20 13.8176 -8028.85463 390\n", "segments 3 and 4 meet",
+                 "within 0.1 %");
+    expect_error("[accumulator]\ndiaphragm_slopes_in3_per_psi = 0 0.1546 75.531097 -1\n",
+                 "bad.ini:2: [accumulator] diaphragm_slopes_in3_per_psi", "out of range [0, 1000]");
     expect_error("[springs]\nvolume_in3 = 1\n", "bad.ini:2:", "unknown section");
     expect_error("[pipe]\nvolume_in3 = 12.5x\n", "bad.ini:2:", "not a number");
     expect_error("[controller]\nband_lower_in = 15.9\nband_upper_in = 15.8\n", "band_lower must be below", NULL);
@@ -226,6 +235,14 @@ static void test_config_units_and_include(void **state)
     assert_true(fabs(b.plant.spring_volume0_m3 / a.plant.spring_volume0_m3 - 1.0) < 1e-6);
     assert_true(fabs(b.plant.temperature_k / a.plant.temperature_k - 1.0) < 1e-9);
     assert_true(fabs(b.plant.acc_charge_pa / a.plant.acc_charge_pa - 1.0) < 1e-6);
+    /* the diaphragm curve of the thesis (README: figure 22 as Appendix B has it) */
+    static const double p_psia[] = {30.0, 100.0, 110.0, 120.0};
+    static const double v_in3[] = {20.0, 0.1546 * 100.0 + 13.8176, 75.531097 * 110.0 - 8028.85463, 0.75 * 120.0 + 398.975};
+    for (int i = 0; i < 4; i++) {
+        double v, dv;
+        plant_diaphragm_volume(&a.plant, p_psia[i] * PSI, &v, &dv);
+        assert_true(fabs(v / (IN * IN * IN) - v_in3[i]) < 1e-9 * v_in3[i]);
+    }
     /* the defaults are the thesis 900 lb file */
     static plant_config d;
     plant_config_defaults(&d);

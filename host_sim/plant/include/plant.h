@@ -23,6 +23,7 @@
 
 #define PLANT_MAX_BANDS 8
 #define PLANT_MAX_POLY 6
+#define PLANT_MAX_DIAPHRAGM_SEGMENTS 8
 #define PLANT_NAME_MAX 64
 #define PLANT_PATH_MAX 512
 
@@ -77,6 +78,13 @@ typedef struct {
     double acc_charge_pa; /* absolute; initial P3 */
     double acc_valve_diameter_m;
     double acc_valve_cd;
+    /* diaphragm accumulator: V(P3) piecewise linear, segment i for P3 below
+     * break i, the last one above every break (figure 22, Appendix B) */
+    int diaphragm_segments;
+    double diaphragm_break_pa[PLANT_MAX_DIAPHRAGM_SEGMENTS - 1];
+    double diaphragm_slope_m3_per_pa[PLANT_MAX_DIAPHRAGM_SEGMENTS];
+    double diaphragm_intercept_m3[PLANT_MAX_DIAPHRAGM_SEGMENTS];
+    int diaphragm_slope_count, diaphragm_intercept_count; /* as given, checked against segments */
     /* air spring */
     double spring_volume0_m3; /* at the initial height */
     double area_cc1_in2[PLANT_MAX_POLY]; /* CC1 = sum c[i] (load_lbf/100)^i, in^2 */
@@ -217,8 +225,8 @@ double plant_effective_area_m2(const plant_params *p, double load_n, double y_m)
 const plant_hysteresis_band *plant_band_for_load(const plant_params *p, double load_n);
 double plant_up_limit_pag(const plant_hysteresis_band *b, double y_m);
 double plant_down_limit_pag(const plant_hysteresis_band *b, double y_m);
-/* Diaphragm accumulator volume and dV/dP at P3 (figure 22). */
-void plant_diaphragm_volume(double p3_pa, double *v_m3, double *dv_dp_m3_per_pa);
+/* Diaphragm accumulator volume and dV/dP at P3 ([accumulator] diaphragm_*). */
+void plant_diaphragm_volume(const plant_params *p, double p3_pa, double *v_m3, double *dv_dp_m3_per_pa);
 /* Accumulator volume now (tube: fixed). */
 double plant_acc_volume_m3(const plant *pl);
 /* Orifice mass flow (eq. 8/9 with exponent 1/k), kg/s, from pu to pd (pu >= pd). */

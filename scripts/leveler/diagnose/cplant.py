@@ -1,7 +1,7 @@
-"""The project's C plant through ctypes (tests/diagnose/diag_shim.c, host_sim/plant/effects.c).
+"""The project's C plant through ctypes (host_sim/diagnose/diag_shim.c, host_sim/plant/effects.c).
 
 The shared library `libleveler_diag.so` is built without sanitizers by
-tests/diagnose/CMakeLists.txt. It is looked up in $LEVELER_DIAG_LIB, then in
+host_sim/diagnose/CMakeLists.txt. It is looked up in $LEVELER_DIAG_LIB, then in
 the project's build folders (build/sim, build/bench, build/test).
 """
 import ctypes
@@ -31,7 +31,7 @@ def find_library():
         return env
     cands = []
     for b in ("build/sim", "build/bench", "build/test", "build/*"):
-        cands += glob.glob(os.path.join(ROOT, b, "tests", "diagnose", "libleveler_diag.so"))
+        cands += glob.glob(os.path.join(ROOT, b, "host_sim", "diagnose", "libleveler_diag.so"))
     cands = [c for c in cands if os.path.isfile(c)]
     if not cands:
         raise DiagnoseInputError("libleveler_diag.so not found: build it with "

@@ -5,8 +5,8 @@
  * firmware in the loop (hal_sim.c, as host_sim/sim/simloop.c does it).
  *
  * Built as a shared library WITHOUT sanitizers (a sanitized .so cannot be
- * dlopen'ed from the venv python); the sanitized test build checks the same
- * code through tests/diagnose/test_effects.c.
+ * dlopen'ed from the venv python; host_sim/diagnose/CMakeLists.txt); the
+ * sanitized test build checks the effects through tests/diagnose/test_effects.c.
  */
 #include <math.h>
 #include <stdint.h>
