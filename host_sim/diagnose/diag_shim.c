@@ -47,7 +47,10 @@ static uint16_t to_counts(double v, double eng_lo, double eng_hi, double raw_lo,
  *   commands         n x 4 (compressor, solenoid, vent, acc_valve) to replay, or NULL for the
  *                    firmware in the loop (then t_s must be the 10 ms tick grid from 0)
  *   fx_kind, fx_params  effect (effects.h), PLANT_FX_MAX_PARAMS doubles
- *   init             height m, P2, P1 Pa at t_s[0]; NaN = the config's
+ *   init             height m, P2, P1 Pa at t_s[0]; NaN = the config's. Given (even all
+ *                    NaN), the platform starts at rest and, closed loop, the firmware
+ *                    decides from the first tick; NULL = the config's initial state
+ *                    whole, its velocity and [initial] actuators included (leveler-sim)
  *   out              n x 4: height, P2, P1, P3 as the transducers report them at t_s[i]
  *   cmd_out          n x 4: the actuator states in force from t_s[i] (may be NULL)
  * Returns 0, or -1 with a message in err.
@@ -96,9 +99,12 @@ int diag_simulate(const char *config_path, int n, const double *t_s, const doubl
         double sensed[4];
         plant_fx_sensed(&f, sensed);
         plant_inputs in = {false, false, false, false, load_n[i]};
-        if (closed && i == 0) {
-            /* the first tick under the config's [initial] actuators, the
-             * firmware's first decision at its end (host_sim/sim/simloop.c) */
+        if (closed && i == 0 && !init) {
+            /* From the config's own initial state (a rig already running, as
+             * leveler-sim starts): the first tick under its [initial]
+             * actuators, the firmware's first decision at its end. From a
+             * given state (init: a log's first state, at rest) the firmware
+             * decides from the first tick. */
             in.compressor = cfg.init_compressor != 0;
             in.spring_valve = cfg.init_spring_valve != 0;
             in.vent_valve = cfg.init_vent_valve != 0;

@@ -56,14 +56,11 @@ def _iptr(a):
 def initial_state(run):
     """Height, P2, P1 at the start: averaged over the quiet start of the run
     (before the first load change or actuator switch, at most 2 s), so sensor
-    noise does not become an initial-state error. A switch right after the
-    first row does not end the quiet start: a run begins with the [initial]
-    actuators of a rig already running for one tick (host_sim/sim/simloop.c),
-    too short to move the state."""
+    noise does not become an initial-state error."""
     t = run.t_s
     end = np.searchsorted(t, t[0] + 2.0)
     changes = [np.flatnonzero(np.abs(np.diff(run.load_n)) > 1.0)]
-    changes += [np.flatnonzero(np.diff(v[1:]) != 0) + 1 for v in run.commands.values()]
+    changes += [np.flatnonzero(np.diff(v) != 0) for v in run.commands.values()]
     for c in changes:
         if c.size:
             end = min(end, int(c[0]) + 1)
