@@ -313,33 +313,51 @@ static void write_single_register(const uint8_t *pdu, size_t pdu_len, bool broad
     write_and_echo(pdu, 5u, LEVELER_TABLE_HOLDING_REGISTER, address, 1u, &value, out);
 }
 
-/* FC 15. Request PDU: fc, start(2), quantity(2), byte count, packed bits. */
-static void write_multiple_coils(const uint8_t *pdu, size_t pdu_len, bool broadcast,
-                                 pdu_out *out)
+/*
+ * FC 15 and 16: the request check they share. Request PDU: fc, start(2),
+ * quantity(2), byte count, then the values (bits packed 8 to a byte for coils,
+ * 2 bytes each for registers). True with *start and *quantity when the write
+ * may go ahead; otherwise the exception is in out (or, for a broadcast, nothing
+ * is owed).
+ */
+static bool check_write_multiple(const uint8_t *pdu, size_t pdu_len, bool broadcast, leveler_table table,
+                                 uint16_t max_quantity, pdu_out *out, uint16_t *start, uint16_t *quantity)
 {
     const uint8_t fc = pdu[0];
     if (pdu_len < 6u) {
         reply_exception(out, fc, EXC_ILLEGAL_DATA_VALUE);
-        return;
+        return false;
     }
-    const uint16_t start = be16(&pdu[1]);
-    const uint16_t quantity = be16(&pdu[3]);
+    *start = be16(&pdu[1]);
+    *quantity = be16(&pdu[3]);
     const uint8_t byte_count = pdu[5];
-    if (quantity < 1u || quantity > MAX_WRITE_BITS || byte_count != (quantity + 7u) / 8u ||
+    const uint32_t want_bytes = table == LEVELER_TABLE_COIL ? ((uint32_t)*quantity + 7u) / 8u
+                                                            : (uint32_t)*quantity * 2u;
+    if (*quantity < 1u || *quantity > max_quantity || byte_count != want_bytes ||
         pdu_len != 6u + (size_t)byte_count) {
         reply_exception(out, fc, EXC_ILLEGAL_DATA_VALUE);
-        return;
+        return false;
     }
-    if (!range_in_table(LEVELER_TABLE_COIL, start, quantity)) {
+    if (!range_in_table(table, *start, *quantity)) {
         reply_exception(out, fc, EXC_ILLEGAL_DATA_ADDRESS);
-        return;
+        return false;
     }
-    if (quantity > SCRATCH_ITEMS) {
-        /* Legal and in the table, but this server cannot hold it whole. */
+    if (*quantity > SCRATCH_ITEMS) {
+        /* Legal and in the table, but this server cannot hold it whole (coils only:
+         * MAX_WRITE_REGISTERS is below SCRATCH_ITEMS). */
         reply_exception(out, fc, EXC_SERVER_DEVICE_FAILURE);
-        return;
+        return false;
     }
-    if (!room_for_echo(out, fc, 5u, broadcast)) {
+    return room_for_echo(out, fc, 5u, broadcast);
+}
+
+/* FC 15. */
+static void write_multiple_coils(const uint8_t *pdu, size_t pdu_len, bool broadcast,
+                                 pdu_out *out)
+{
+    uint16_t start, quantity;
+    if (!check_write_multiple(pdu, pdu_len, broadcast, LEVELER_TABLE_COIL, MAX_WRITE_BITS, out, &start,
+                              &quantity)) {
         return;
     }
     uint16_t bits[SCRATCH_ITEMS];
@@ -349,28 +367,13 @@ static void write_multiple_coils(const uint8_t *pdu, size_t pdu_len, bool broadc
     write_and_echo(pdu, 5u, LEVELER_TABLE_COIL, start, quantity, bits, out);
 }
 
-/* FC 16. Request PDU: fc, start(2), quantity(2), byte count, values(2 each). */
+/* FC 16. */
 static void write_multiple_registers(const uint8_t *pdu, size_t pdu_len, bool broadcast,
                                      pdu_out *out)
 {
-    const uint8_t fc = pdu[0];
-    if (pdu_len < 6u) {
-        reply_exception(out, fc, EXC_ILLEGAL_DATA_VALUE);
-        return;
-    }
-    const uint16_t start = be16(&pdu[1]);
-    const uint16_t quantity = be16(&pdu[3]);
-    const uint8_t byte_count = pdu[5];
-    if (quantity < 1u || quantity > MAX_WRITE_REGISTERS || byte_count != quantity * 2u ||
-        pdu_len != 6u + (size_t)byte_count) {
-        reply_exception(out, fc, EXC_ILLEGAL_DATA_VALUE);
-        return;
-    }
-    if (!range_in_table(LEVELER_TABLE_HOLDING_REGISTER, start, quantity)) {
-        reply_exception(out, fc, EXC_ILLEGAL_DATA_ADDRESS);
-        return;
-    }
-    if (!room_for_echo(out, fc, 5u, broadcast)) {
+    uint16_t start, quantity;
+    if (!check_write_multiple(pdu, pdu_len, broadcast, LEVELER_TABLE_HOLDING_REGISTER, MAX_WRITE_REGISTERS, out,
+                              &start, &quantity)) {
         return;
     }
     uint16_t words[SCRATCH_ITEMS]; /* quantity <= 123 */
