@@ -99,27 +99,27 @@ int diag_simulate(const char *config_path, int n, const double *t_s, const doubl
         double sensed[4];
         plant_fx_sensed(&f, sensed);
         plant_inputs in = {false, false, false, false, load_n[i]};
-        if (closed && i == 0 && !init) {
-            /* From the config's own initial state (a rig already running, as
-             * leveler-sim starts): the first tick under its [initial]
-             * actuators, the firmware's first decision at its end. From a
-             * given state (init: a log's first state, at rest) the firmware
-             * decides from the first tick. */
-            in.compressor = cfg.init_compressor != 0;
-            in.spring_valve = cfg.init_spring_valve != 0;
-            in.vent_valve = cfg.init_vent_valve != 0;
-            in.acc_valve = cfg.init_acc_valve != 0;
-        } else if (closed) {
-            uint16_t counts[4];
-            counts[0] = to_counts(sensed[0], s->height_lo_m, s->height_hi_m, s->height_lo_counts, s->height_hi_counts);
-            for (int c = 1; c < 4; c++)
-                counts[c] = to_counts(sensed[c], s->pressure_lo_pa, s->pressure_hi_pa, s->pressure_lo_counts,
-                                      s->pressure_hi_counts);
-            sim_hal_set_counts(counts);
-            sim_hal_set_time_ms((uint32_t)llround(t_s[i] * 1000.0));
-            leveler_app_tick();
-            bool o[5];
-            sim_hal_get_outputs(o);
+        if (closed) {
+            bool o[HAL_OUT_COUNT];
+            if (i == 0 && !init) {
+                /* From the config's own initial state (a rig already running, as
+                 * leveler-sim starts): the first tick under its [initial]
+                 * actuators, the firmware's first decision at its end. From a
+                 * given state (init: a log's first state, at rest) the firmware
+                 * decides from the first tick. */
+                sim_initial_outputs(&cfg, o);
+            } else {
+                uint16_t counts[4];
+                counts[0] =
+                    to_counts(sensed[0], s->height_lo_m, s->height_hi_m, s->height_lo_counts, s->height_hi_counts);
+                for (int c = 1; c < 4; c++)
+                    counts[c] = to_counts(sensed[c], s->pressure_lo_pa, s->pressure_hi_pa, s->pressure_lo_counts,
+                                          s->pressure_hi_counts);
+                sim_hal_set_counts(counts);
+                sim_hal_set_time_ms((uint32_t)llround(t_s[i] * 1000.0));
+                leveler_app_tick();
+                sim_hal_get_outputs(o);
+            }
             in.compressor = o[HAL_OUT_COMPRESSOR];
             in.spring_valve = o[HAL_OUT_SPRING_VALVE];
             in.vent_valve = o[HAL_OUT_VENT_VALVE];

@@ -26,15 +26,6 @@ static void fill_row(runlog_row *row, const plant *pl, double t_s, const bool ou
     row->acc_valve = out[HAL_OUT_ACC_VALVE];
 }
 
-void sim_initial_outputs(const plant_config *cfg, bool out[5])
-{
-    memset(out, 0, 5 * sizeof out[0]);
-    out[HAL_OUT_COMPRESSOR] = cfg->init_compressor != 0;
-    out[HAL_OUT_SPRING_VALVE] = cfg->init_spring_valve != 0;
-    out[HAL_OUT_VENT_VALVE] = cfg->init_vent_valve != 0;
-    out[HAL_OUT_ACC_VALVE] = cfg->init_acc_valve != 0;
-}
-
 int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
 {
     const plant_config *cfg = o->config;

@@ -164,6 +164,16 @@ def _lookup(chain, section, base, units):
     return value * scale + (offset or 0.0), (path, f"{base}_{u}")
 
 
+def raw_value(path, section, key) -> Optional[str]:
+    """The text of ``[section] key`` as the simulator sees it: the last one
+    along the file's include chain; None when no file gives it."""
+    value = None
+    for _, cp in _load_chain(os.fspath(path)):
+        if cp.has_option(section, key):
+            value = cp.get(section, key).strip()
+    return value
+
+
 def load(path) -> AnalysisConfig:
     """Reads the keys the analysis needs from a simulator config file."""
     path = os.fspath(path)

@@ -10,7 +10,7 @@ import subprocess
 
 import pytest
 
-from leveler import events, runlog
+from leveler import config, events, runlog
 
 SIM = os.environ.get("LEVELER_SIM", "leveler-sim")
 CONFIGS = os.environ.get("LEVELER_CONFIG_DIR", os.path.join(os.path.dirname(__file__), "../../host_sim/configs"))
@@ -89,21 +89,8 @@ def _limit(key):
 
 def _substeps(path):
     """[solver] substeps_per_tick of a config, following its includes (default 2)."""
-    value, include, section = None, None, None
-    with open(path) as f:
-        for line in f:
-            line = line.split(";")[0].split("#")[0].strip()
-            if line.startswith("["):
-                section = line.strip("[]")
-            elif "=" in line:
-                key, val = (x.strip() for x in line.split("=", 1))
-                if section == "solver" and key == "substeps_per_tick":
-                    value = int(val)
-                elif section == "config" and key == "include":
-                    include = os.path.join(os.path.dirname(path), val)
-    if value is None and include:
-        return _substeps(include)
-    return 2 if value is None else value
+    value = config.raw_value(path, "solver", "substeps_per_tick")
+    return 2 if value is None else int(value)
 
 
 @pytest.mark.parametrize("name", ["thesis-900lb", "thesis-1000lb", "thesis-900lb-tube", "thesis-900lb-diaphragm",

@@ -56,10 +56,6 @@ typedef struct {
     plant final_plant;    /* plant at the end */
 } sim_result;
 
-/* The actuators over the first tick, from the config's [initial] section
- * (indexed by hal_output; the status LED off). */
-void sim_initial_outputs(const plant_config *cfg, bool out[5]);
-
 /* Run a whole scenario. 0 on success; -1 with a message in err (refused
  * setting, log write error). */
 int sim_run(const sim_options *opt, sim_result *res, char *err, size_t err_len);
