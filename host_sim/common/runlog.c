@@ -1,9 +1,12 @@
 /*
  * Run-log writer (runlog.h, docs/log-format.md).
  *
- * Every line is formatted into a buffer first and handed to the kernel with
- * one write() (looping only on a partial write or EINTR), so there is no stdio
- * buffer that a SIGTERM could leave half-flushed: a reader sees whole lines.
+ * Every line is formatted into a buffer first. A line-buffered log (the rig)
+ * hands each line to the kernel with one write() (looping only on a partial
+ * write or EINTR) and fsyncs at close; a buffered log (the simulator) collects
+ * whole lines in RUNLOG_BUFFER_BYTES and writes them together. Either way no
+ * stdio buffer is involved and only whole lines reach the file, so a reader
+ * of a process stopped by SIGTERM sees whole lines.
  * Rotation: when the next line would push the current file past rotate_bytes,
  * the file is fsync'ed and closed, path.(k) -> path.(k+1) for k = keep-1..1,
  * path -> path.1, and a fresh path starts with the same header.
@@ -11,10 +14,11 @@
 #define _POSIX_C_SOURCE 200809L
 #include "runlog.h"
 
+#include "decimal.h"
+
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,6 +26,7 @@
 
 #define RUNLOG_LINE_MAX 512
 #define RUNLOG_HEADER_MAX 1024
+#define RUNLOG_BUFFER_BYTES 65536
 
 struct runlog {
     int fd;
@@ -32,6 +37,8 @@ struct runlog {
     size_t file_bytes; /* bytes in the current file, header included */
     char header[RUNLOG_HEADER_MAX];
     size_t header_len;
+    char *buf; /* buffered logs: whole lines not yet written */
+    size_t buf_len;
 };
 
 static int write_all(int fd, const char *buf, size_t len)
@@ -47,6 +54,15 @@ static int write_all(int fd, const char *buf, size_t len)
         len -= (size_t)n;
     }
     return 0;
+}
+
+static int flush_buffer(runlog *log)
+{
+    if (log->buf_len == 0)
+        return 0;
+    int rc = write_all(log->fd, log->buf, log->buf_len);
+    log->buf_len = 0;
+    return rc;
 }
 
 static int open_fresh(runlog *log)
@@ -70,7 +86,7 @@ static int numbered_path(char *buf, size_t cap, const char *path, unsigned n)
 
 static int rotate(runlog *log)
 {
-    if (fsync(log->fd) != 0 || close(log->fd) != 0) {
+    if (flush_buffer(log) != 0 || fsync(log->fd) != 0 || close(log->fd) != 0) {
         log->fd = -1;
         return -1;
     }
@@ -122,15 +138,25 @@ runlog *runlog_open(const runlog_options *options, char *err, size_t err_len)
     log->rotate_bytes = log->is_stdout ? 0 : options->rotate_bytes;
     log->keep_files = options->keep_files;
     log->path = strdup(options->path);
+    if (options->buffered && log->path)
+        log->buf = malloc(RUNLOG_BUFFER_BYTES);
     int hlen = snprintf(log->header, sizeof log->header,
                         "# leveler run log, format %d\n# config: %s\n# source: %s\n"
                         "t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,"
-                        "compressor,solenoid,vent,acc_valve\n",
+                        "compressor,spring_valve,vent_valve,acc_valve\n",
                         RUNLOG_FORMAT_VERSION,
                         options->config_name ? options->config_name : "",
                         options->source ? options->source : "");
-    if (log->path == NULL || hlen < 0 || (size_t)hlen >= sizeof log->header) {
+    if (log->path == NULL || (options->buffered && log->buf == NULL)) {
+        snprintf(err, err_len, "runlog: %s: out of memory", options->path);
+        free(log->buf);
+        free(log->path);
+        free(log);
+        return NULL;
+    }
+    if (hlen < 0 || (size_t)hlen >= sizeof log->header) {
         snprintf(err, err_len, "runlog: %s: header too long (config or source name)", options->path);
+        free(log->buf);
         free(log->path);
         free(log);
         return NULL;
@@ -140,6 +166,7 @@ runlog *runlog_open(const runlog_options *options, char *err, size_t err_len)
         log->fd = STDOUT_FILENO;
         if (write_all(log->fd, log->header, log->header_len) != 0) {
             snprintf(err, err_len, "runlog: stdout: %s", strerror(errno));
+            free(log->buf);
             free(log->path);
             free(log);
             return NULL;
@@ -150,6 +177,7 @@ runlog *runlog_open(const runlog_options *options, char *err, size_t err_len)
         snprintf(err, err_len, "runlog: %s: %s", options->path, strerror(errno));
         if (log->fd >= 0)
             close(log->fd);
+        free(log->buf);
         free(log->path);
         free(log);
         return NULL;
@@ -164,38 +192,45 @@ typedef struct {
     int overflow;
 } line_buffer;
 
-__attribute__((format(printf, 2, 3)))
-static void append(line_buffer *line, const char *fmt, ...)
+static void append(line_buffer *line, const char *text, size_t n)
 {
-    if (line->overflow)
-        return;
-    size_t cap = sizeof line->buf - line->len;
-    va_list args;
-    va_start(args, fmt);
-    int n = vsnprintf(line->buf + line->len, cap, fmt, args);
-    va_end(args);
-    if (n < 0 || (size_t)n >= cap)
+    if (line->overflow || n >= sizeof line->buf - line->len) {
         line->overflow = 1;
-    else
-        line->len += (size_t)n;
+        return;
+    }
+    memcpy(line->buf + line->len, text, n);
+    line->len += n;
 }
 
-/* A measurement; not-a-number (not measured) or infinite -> empty cell. */
+/* Room for one more cell, formatted in place. */
+static char *cell(line_buffer *line)
+{
+    if (line->overflow || sizeof line->buf - line->len < DECIMAL_MAX + 2) {
+        line->overflow = 1;
+        return NULL;
+    }
+    return line->buf + line->len;
+}
+
+/* A measurement, %.9g (decimal.h); not-a-number (not measured) or infinite -> empty cell. */
 static void put_number(line_buffer *line, double v)
 {
-    if (isfinite(v))
-        append(line, ",%.9g", v);
-    else
-        append(line, ",");
+    char *c = cell(line);
+    if (c) {
+        c[0] = ',';
+        line->len += 1 + (isfinite(v) ? decimal_g9(v, c + 1) : 0);
+    }
 }
 
 /* An actuator state 0/1; -1 (unknown) -> empty cell. */
 static void put_flag(line_buffer *line, int v)
 {
-    if (v < 0)
-        append(line, ",");
-    else
-        append(line, ",%d", v ? 1 : 0);
+    char *c = cell(line);
+    if (c) {
+        c[0] = ',';
+        c[1] = v ? '1' : '0';
+        line->len += v < 0 ? 1 : 2;
+    }
 }
 
 int runlog_write(runlog *log, const runlog_row *row)
@@ -205,17 +240,17 @@ int runlog_write(runlog *log, const runlog_row *row)
         return -1;
     }
     line_buffer line = {.len = 0, .overflow = 0};
-    append(&line, "%.6f", row->t_s);
+    line.len = decimal_f6(row->t_s, line.buf);
     put_number(&line, row->height_m);
     put_number(&line, row->p_spring_pa);
     put_number(&line, row->p_pipe_pa);
     put_number(&line, row->p_acc_pa);
     put_number(&line, row->load_n);
     put_flag(&line, row->compressor);
-    put_flag(&line, row->solenoid);
-    put_flag(&line, row->vent);
+    put_flag(&line, row->spring_valve);
+    put_flag(&line, row->vent_valve);
     put_flag(&line, row->acc_valve);
-    append(&line, "\n");
+    append(&line, "\n", 1);
     if (line.overflow) {
         errno = EOVERFLOW;
         return -1;
@@ -226,10 +261,23 @@ int runlog_write(runlog *log, const runlog_row *row)
         if (rotate(log) != 0)
             return -1;
     }
-    if (write_all(log->fd, line.buf, line.len) != 0)
+    if (log->buf) {
+        if (log->buf_len + line.len > RUNLOG_BUFFER_BYTES && flush_buffer(log) != 0)
+            return -1;
+        memcpy(log->buf + log->buf_len, line.buf, line.len);
+        log->buf_len += line.len;
+    } else if (write_all(log->fd, line.buf, line.len) != 0) {
         return -1;
+    }
     log->file_bytes += line.len;
     return 0;
+}
+
+/* fsync where it means something: pipes, terminals and /dev/null cannot be
+ * synced (EINVAL, EROFS) and have nothing to lose. */
+static int sync_fd(int fd)
+{
+    return fsync(fd) != 0 && errno != EINVAL && errno != EROFS ? -1 : 0;
 }
 
 int runlog_close(runlog *log)
@@ -237,18 +285,18 @@ int runlog_close(runlog *log)
     if (log == NULL)
         return 0;
     int rc = 0;
-    if (log->is_stdout) {
-        /* fsync on a pipe or terminal fails with EINVAL: nothing to sync there. */
-        if (fsync(log->fd) != 0 && errno != EINVAL && errno != EROFS)
-            rc = -1;
-    } else if (log->fd >= 0) {
-        if (fsync(log->fd) != 0)
-            rc = -1;
-        if (close(log->fd) != 0)
-            rc = -1;
-    } else {
+    if (log->fd < 0) {
         rc = -1; /* a failed rotation left no file open */
+    } else {
+        if (flush_buffer(log) != 0)
+            rc = -1;
+        /* the rig's log is fsync'ed; the simulator's (buffered) is the page cache's */
+        if (!log->buf && sync_fd(log->fd) != 0)
+            rc = -1;
+        if (!log->is_stdout && close(log->fd) != 0)
+            rc = -1;
     }
+    free(log->buf);
     free(log->path);
     free(log);
     return rc;

@@ -2,7 +2,7 @@
  * ctypes entry point of the sim-to-real diagnosis (scripts/leveler/diagnose/cplant.py):
  * one call simulates one whole run of the C plant with one effect switched on,
  * either replaying logged actuator commands open loop or with the unchanged
- * firmware in the loop (hal_sim.c, as host_sim/sim/simloop.c does it).
+ * firmware in the loop (hal_sim.c), on the simulator's one stepper (stepper.h).
  *
  * Built as a shared library WITHOUT sanitizers (a sanitized .so cannot be
  * dlopen'ed from the venv python; host_sim/diagnose/CMakeLists.txt); the
@@ -14,11 +14,6 @@
 #include <string.h>
 
 #include "effects.h"
-#include "leveler/app.h"
-#include "leveler/hal.h"
-#include "leveler/regmap.h"
-#include "leveler/regmap_addr.h"
-#include "commission.h"
 #include "plant.h"
 #include "simloop.h"
 
@@ -32,12 +27,58 @@ int diag_config_check(const char *path, char *err, int err_len)
     return plant_config_load(path, &cfg, err, (size_t)err_len);
 }
 
-/* Sensed value -> 12-bit counts over the config's spans (no noise: the blind
- * test adds noise to the logged values itself). */
-static uint16_t to_counts(double v, double eng_lo, double eng_hi, double raw_lo, double raw_hi)
+/* Hooks: the plant with one effect, replayed commands, the run's own loads. */
+static void fx_set_inputs(void *f, const plant_inputs *in) { plant_fx_set_inputs(f, in); }
+static void fx_advance(void *f, double dt_s, int substeps) { plant_fx_advance(f, dt_s, substeps); }
+static void fx_sensed(const void *f, double out[4]) { plant_fx_sensed(f, out); }
+static const sim_plant_ops fx_plant = {fx_set_inputs, fx_advance, fx_sensed};
+
+static void replay_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT])
 {
-    double c = floor(raw_lo + (v - eng_lo) * (raw_hi - raw_lo) / (eng_hi - eng_lo) + 0.5);
-    return (uint16_t)(c < 0.0 ? 0.0 : (c > 4095.0 ? 4095.0 : c));
+    const int32_t *c = (const int32_t *)user + 4 * s->k;
+    memset(out, 0, HAL_OUT_COUNT * sizeof out[0]);
+    out[HAL_OUT_COMPRESSOR] = c[0] != 0;
+    out[HAL_OUT_SPRING_VALVE] = c[1] != 0;
+    out[HAL_OUT_VENT_VALVE] = c[2] != 0;
+    out[HAL_OUT_ACC_VALVE] = c[3] != 0;
+}
+
+static double logged_load(sim_stepper *s, void *user, double t_s)
+{
+    (void)t_s;
+    return ((const double *)user)[s->k];
+}
+
+/* The plant's initial state: the config's, or a given one at rest (init). */
+static plant_params initial_params(const plant_config *cfg, const double *init)
+{
+    plant_params p = cfg->plant;
+    if (init) {
+        if (isfinite(init[0]))
+            p.init_height_m = init[0];
+        if (isfinite(init[1]))
+            p.init_p_spring_pa = init[1];
+        if (isfinite(init[2]))
+            p.init_p_pipe_pa = init[2];
+        p.init_velocity_m_per_s = 0.0;
+    }
+    return p;
+}
+
+static int check_time_base(int n, const double *t_s, bool closed, char *err, int err_len)
+{
+    for (int i = 1; i < n; i++) {
+        double dt = t_s[i] - t_s[i - 1];
+        if (!(dt > 0.0)) {
+            snprintf(err, (size_t)err_len, "t_s[%d]: time not increasing", i);
+            return -1;
+        }
+        if (closed && fabs(dt - SIM_TICK_S) > 1e-6) {
+            snprintf(err, (size_t)err_len, "t_s[%d]: closed loop needs the 10 ms tick grid", i);
+            return -1;
+        }
+    }
+    return 0;
 }
 
 /*
@@ -67,16 +108,10 @@ int diag_simulate(const char *config_path, int n, const double *t_s, const doubl
         snprintf(err, (size_t)err_len, "no samples");
         return -1;
     }
-    plant_params p = cfg.plant;
-    if (init) {
-        if (isfinite(init[0]))
-            p.init_height_m = init[0];
-        if (isfinite(init[1]))
-            p.init_p_spring_pa = init[1];
-        if (isfinite(init[2]))
-            p.init_p_pipe_pa = init[2];
-        p.init_velocity_m_per_s = 0.0;
-    }
+    bool closed = commands == NULL;
+    if (check_time_base(n, t_s, closed, err, err_len) != 0)
+        return -1;
+    plant_params p = initial_params(&cfg, init);
     plant_fx_spec spec;
     memset(&spec, 0, sizeof spec);
     spec.kind = fx_kind;
@@ -86,71 +121,29 @@ int diag_simulate(const char *config_path, int n, const double *t_s, const doubl
         snprintf(err, (size_t)err_len, "effect %d: unknown kind or parameter out of range", fx_kind);
         return -1;
     }
-    const double tick_s = LEVELER_TICK_MS / 1000.0;
-    bool closed = commands == NULL;
-    if (closed) {
-        sim_hal_reset();
-        leveler_app_init();
-        if (sim_commission(&cfg, cfg.algorithm, err, (size_t)err_len) != 0)
-            return -1;
-    }
-    const plant_sensor_params *s = &cfg.sensors;
+    if (closed && sim_firmware_start(&cfg, cfg.algorithm, err, (size_t)err_len) != 0)
+        return -1;
+    /* From the config's own initial state (a rig already running, as
+     * leveler-sim starts): the first tick under its [initial] actuators, the
+     * firmware's first decision at its end. From a given state (init: a log's
+     * first state, at rest) the firmware decides from the first tick. No
+     * sensor noise: the blind test adds noise to the logged values itself. */
+    sim_stepper st = {.cfg = &cfg, .plant = &f, .ops = &fx_plant,
+                      .commands = closed ? sim_firmware_commands : replay_commands,
+                      .commands_user = (void *)commands, .load = logged_load, .load_user = (void *)load_n,
+                      .initial_outputs = closed && !init, .times_s = t_s, .n_times = (size_t)n};
+    sim_stepper_start(&st);
     for (int i = 0; i < n; i++) {
-        double sensed[4];
-        plant_fx_sensed(&f, sensed);
-        plant_inputs in = {false, false, false, false, load_n[i]};
-        if (closed) {
-            bool o[HAL_OUT_COUNT];
-            if (i == 0 && !init) {
-                /* From the config's own initial state (a rig already running, as
-                 * leveler-sim starts): the first tick under its [initial]
-                 * actuators, the firmware's first decision at its end. From a
-                 * given state (init: a log's first state, at rest) the firmware
-                 * decides from the first tick. */
-                sim_initial_outputs(&cfg, o);
-            } else {
-                uint16_t counts[4];
-                counts[0] =
-                    to_counts(sensed[0], s->height_lo_m, s->height_hi_m, s->height_lo_counts, s->height_hi_counts);
-                for (int c = 1; c < 4; c++)
-                    counts[c] = to_counts(sensed[c], s->pressure_lo_pa, s->pressure_hi_pa, s->pressure_lo_counts,
-                                          s->pressure_hi_counts);
-                sim_hal_set_counts(counts);
-                sim_hal_set_time_ms((uint32_t)llround(t_s[i] * 1000.0));
-                leveler_app_tick();
-                sim_hal_get_outputs(o);
-            }
-            in.compressor = o[HAL_OUT_COMPRESSOR];
-            in.spring_valve = o[HAL_OUT_SPRING_VALVE];
-            in.vent_valve = o[HAL_OUT_VENT_VALVE];
-            in.acc_valve = o[HAL_OUT_ACC_VALVE];
-        } else {
-            in.compressor = commands[4 * i] != 0;
-            in.spring_valve = commands[4 * i + 1] != 0;
-            in.vent_valve = commands[4 * i + 2] != 0;
-            in.acc_valve = commands[4 * i + 3] != 0;
-        }
-        plant_fx_set_inputs(&f, &in);
-        memcpy(&out[4 * i], sensed, sizeof sensed);
+        sim_stepper_decide(&st);
+        memcpy(&out[4 * i], st.sensed, sizeof st.sensed);
         if (cmd_out) {
-            cmd_out[4 * i] = in.compressor;
-            cmd_out[4 * i + 1] = in.spring_valve;
-            cmd_out[4 * i + 2] = in.vent_valve;
-            cmd_out[4 * i + 3] = in.acc_valve;
+            cmd_out[4 * i] = st.in.compressor;
+            cmd_out[4 * i + 1] = st.in.spring_valve;
+            cmd_out[4 * i + 2] = st.in.vent_valve;
+            cmd_out[4 * i + 3] = st.in.acc_valve;
         }
-        if (i + 1 < n) {
-            double dt = t_s[i + 1] - t_s[i];
-            if (!(dt > 0.0)) {
-                snprintf(err, (size_t)err_len, "t_s[%d]: time not increasing", i + 1);
-                return -1;
-            }
-            if (closed && fabs(dt - tick_s) > 1e-6) {
-                snprintf(err, (size_t)err_len, "t_s[%d]: closed loop needs the 10 ms tick grid", i + 1);
-                return -1;
-            }
-            int sub = (int)lround(dt / tick_s * cfg.substeps_per_tick);
-            plant_fx_advance(&f, dt, sub < 1 ? 1 : sub);
-        }
+        if (i + 1 < n)
+            sim_stepper_advance(&st);
     }
     return 0;
 }

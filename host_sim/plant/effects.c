@@ -318,45 +318,25 @@ static void fx_derivatives(const plant_fx *f, const double *x, double *dx)
         dx[PLANT_X_P1] *= v1 / (v1 + q[1]);
 }
 
+static void fx_rhs(const void *ctx, const double *x, double *dx)
+{
+    fx_derivatives(ctx, x, dx);
+}
+
+/* The plant's RK4 step (plant_rk4_step) over the plant and the extra states. */
 static void rk4_step(plant_fx *f, double h)
 {
     enum { N = PLANT_NX + PLANT_FX_NX };
     plant *pl = &f->pl;
-    /* Damping from the direction of motion at the start of the step (plant_step). */
     double vel = pl->x[PLANT_X_VEL];
-    if (vel > pl->p.velocity_deadband_m_per_s)
-        pl->damping_n_s_per_m = pl->p.damping_up_n_s_per_m;
-    else if (vel < -pl->p.velocity_deadband_m_per_s)
-        pl->damping_n_s_per_m = pl->p.damping_down_n_s_per_m;
-    double x[N], k1[N], k2[N], k3[N], k4[N], xt[N];
+    double x[N];
     memcpy(x, pl->x, sizeof pl->x);
     memcpy(x + PLANT_NX, f->xe, sizeof f->xe);
-    fx_derivatives(f, x, k1);
-    for (int i = 0; i < N; i++)
-        xt[i] = x[i] + 0.5 * h * k1[i];
-    fx_derivatives(f, xt, k2);
-    for (int i = 0; i < N; i++)
-        xt[i] = x[i] + 0.5 * h * k2[i];
-    fx_derivatives(f, xt, k3);
-    for (int i = 0; i < N; i++)
-        xt[i] = x[i] + h * k3[i];
-    fx_derivatives(f, xt, k4);
-    for (int i = 0; i < N; i++)
-        x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    plant_rk4_step(pl, x, N, fx_rhs, f, h);
     if (f->fx.kind == PLANT_FX_TRUTH + PLANT_FX_FRICTION)
         x[PLANT_NX + XE_Z] = lugre_z_update(f->fx.p, f->xe[XE_Z], 0.5 * (vel + x[PLANT_X_VEL]), h);
     memcpy(pl->x, x, sizeof pl->x);
     memcpy(f->xe, x + PLANT_NX, sizeof f->xe);
-    pl->t_s += h;
-    if (pl->x[PLANT_X_Y] < pl->p.height_min_m) {
-        pl->x[PLANT_X_Y] = pl->p.height_min_m;
-        if (pl->x[PLANT_X_VEL] < 0.0)
-            pl->x[PLANT_X_VEL] = 0.0;
-    } else if (pl->x[PLANT_X_Y] > pl->p.height_max_m) {
-        pl->x[PLANT_X_Y] = pl->p.height_max_m;
-        if (pl->x[PLANT_X_VEL] > 0.0)
-            pl->x[PLANT_X_VEL] = 0.0;
-    }
 }
 
 static double lag(double state, double target, double tau, double dt)

@@ -165,10 +165,6 @@ void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PL
         force = (pg - down) * area;
     force -= pl->damping_n_s_per_m * vel;
 
-    /* EXTENSION POINT: unmodelled effects (thermal time constant, Coulomb
-     * friction, valve and line delays, leaks, nonlinear area) add their terms
-     * to the flows, force and derivatives here, and their states after
-     * PLANT_X_VEL. */
 
     double d_p1 = pl->zn_rt_per_v1 * (m_c - m_s - m_v - m_a);
     double d_p2 = pl->zn * (pl->rt * m_s - p2 * dv2) / v2;
@@ -244,29 +240,29 @@ void plant_set_inputs(plant *pl, const plant_inputs *in)
         update_load(pl, in->load_n);
 }
 
-void plant_step(plant *pl, double h)
+void plant_rk4_step(plant *pl, double *x, int n, plant_rhs_fn rhs, const void *ctx, double h)
 {
     /* Damping follows the direction of motion at the start of the step; while
      * the platform is (nearly) at rest the last value is kept (the program). */
-    double vel = pl->x[PLANT_X_VEL];
+    double vel = x[PLANT_X_VEL];
     if (vel > pl->p.velocity_deadband_m_per_s)
         pl->damping_n_s_per_m = pl->p.damping_up_n_s_per_m;
     else if (vel < -pl->p.velocity_deadband_m_per_s)
         pl->damping_n_s_per_m = pl->p.damping_down_n_s_per_m;
 
-    double k1[PLANT_NX], k2[PLANT_NX], k3[PLANT_NX], k4[PLANT_NX], xt[PLANT_NX];
-    double *x = pl->x;
-    plant_derivatives(pl, x, k1, NULL);
-    for (int i = 0; i < PLANT_NX; i++)
+    double k1[PLANT_RK4_MAX_NX], k2[PLANT_RK4_MAX_NX], k3[PLANT_RK4_MAX_NX], k4[PLANT_RK4_MAX_NX];
+    double xt[PLANT_RK4_MAX_NX];
+    rhs(ctx, x, k1);
+    for (int i = 0; i < n; i++)
         xt[i] = x[i] + 0.5 * h * k1[i];
-    plant_derivatives(pl, xt, k2, NULL);
-    for (int i = 0; i < PLANT_NX; i++)
+    rhs(ctx, xt, k2);
+    for (int i = 0; i < n; i++)
         xt[i] = x[i] + 0.5 * h * k2[i];
-    plant_derivatives(pl, xt, k3, NULL);
-    for (int i = 0; i < PLANT_NX; i++)
+    rhs(ctx, xt, k3);
+    for (int i = 0; i < n; i++)
         xt[i] = x[i] + h * k3[i];
-    plant_derivatives(pl, xt, k4, NULL);
-    for (int i = 0; i < PLANT_NX; i++)
+    rhs(ctx, xt, k4);
+    for (int i = 0; i < n; i++)
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
     pl->t_s += h;
 
@@ -280,6 +276,16 @@ void plant_step(plant *pl, double h)
         if (x[PLANT_X_VEL] > 0.0)
             x[PLANT_X_VEL] = 0.0;
     }
+}
+
+static void nominal_rhs(const void *ctx, const double *x, double *dxdt)
+{
+    plant_derivatives(ctx, x, dxdt, NULL);
+}
+
+void plant_step(plant *pl, double h)
+{
+    plant_rk4_step(pl, pl->x, PLANT_NX, nominal_rhs, pl, h);
 }
 
 void plant_advance(plant *pl, double dt_s, int substeps)
@@ -340,13 +346,26 @@ static uint16_t to_counts(double value, double eng_lo, double eng_hi, double raw
     return (uint16_t)c;
 }
 
+void plant_sensed(const plant *pl, double out[4])
+{
+    out[0] = pl->x[PLANT_X_Y];
+    out[1] = pl->x[PLANT_X_P2];
+    out[2] = pl->x[PLANT_X_P1];
+    out[3] = pl->p.acc_type == PLANT_ACC_NONE ? pl->p.ambient_pa : pl->x[PLANT_X_P3];
+}
+
+void plant_counts(const plant_sensor_params *sp, const double sensed[4], plant_rng *rng, uint16_t counts[4])
+{
+    counts[0] = to_counts(sensed[0], sp->height_lo_m, sp->height_hi_m, sp->height_lo_counts,
+                          sp->height_hi_counts, sp->noise_counts, rng);
+    for (int i = 1; i < 4; i++)
+        counts[i] = to_counts(sensed[i], sp->pressure_lo_pa, sp->pressure_hi_pa, sp->pressure_lo_counts,
+                              sp->pressure_hi_counts, sp->noise_counts, rng);
+}
+
 void plant_sensor_counts(const plant *pl, const plant_sensor_params *sp, plant_rng *rng, uint16_t counts[4])
 {
-    double p3 = pl->p.acc_type == PLANT_ACC_NONE ? pl->p.ambient_pa : pl->x[PLANT_X_P3];
-    counts[0] = to_counts(pl->x[PLANT_X_Y], sp->height_lo_m, sp->height_hi_m, sp->height_lo_counts,
-                          sp->height_hi_counts, sp->noise_counts, rng);
-    const double pv[3] = {pl->x[PLANT_X_P2], pl->x[PLANT_X_P1], p3};
-    for (int i = 0; i < 3; i++)
-        counts[1 + i] = to_counts(pv[i], sp->pressure_lo_pa, sp->pressure_hi_pa, sp->pressure_lo_counts,
-                                  sp->pressure_hi_counts, sp->noise_counts, rng);
+    double sensed[4];
+    plant_sensed(pl, sensed);
+    plant_counts(sp, sensed, rng, counts);
 }

@@ -14,12 +14,12 @@
  *                          of 10) before the reply; ignored with --clock realtime
  *   coils 0..3             compressor, spring valve, vent valve, accumulator valve
  *
- * Start: the coils hold the config's [initial] actuators and the module clock
- * starts at 10 ms, the first tick already run under them (the rig was running
- * when the controller took over; leveler-sim does the same).
- *
- * Load schedule: the config's [scenario]; the load in force over each 10 ms
- * step is the one at the start of that step. --clock realtime advances 10 ms
+ * The plant steps on the simulator's one stepper (host_sim/sim/stepper.h) with
+ * the coils as its commands: the first tick runs under the config's
+ * [initial] actuators (the coils start as them) and the module clock starts
+ * at 10 ms (the rig was running when the controller took over; leveler-sim
+ * does the same). Load: the config's [scenario] by the stepper's one rule.
+ * --clock realtime advances 10 ms
  * per 10 ms of CLOCK_MONOTONIC. The process ends on SIGINT/SIGTERM, or after
  * --max-seconds of wall time (a guard for tests).
  */
@@ -38,12 +38,12 @@
 #include <unistd.h>
 
 #include "plant.h"
+#include "stepper.h"
 
 #define REG_COUNTS 0
 #define REG_LOAD_N 4
 #define REG_TIME_MS 16
 #define REG_STEP 0
-#define TICK_MS 10
 #define MAX_CLIENTS 16
 
 static volatile sig_atomic_t stop_requested;
@@ -54,31 +54,42 @@ static void on_signal(int sig)
 }
 
 typedef struct {
+    const char *config, *address, *port_file;
+    int port;
+    int lockstep;
+    double max_seconds;
+} server_options;
+
+typedef struct {
     plant_config cfg;
     plant pl;
     plant_rng rng;
-    uint64_t time_ms;
+    sim_load_step steps[4];
+    sim_schedule_cursor cursor;
+    sim_stepper st;
     modbus_mapping_t *map;
+    modbus_t *ctx;
+    int listen_fd;
+    int clients[MAX_CLIENTS];
 } served_plant;
 
-/* The scenario load over the interval starting at t_s; half a tick of slack
- * against rounding, as leveler-sim does. */
-static double load_at(const plant_config *c, double t_s)
+/* Coils 0..3 in the order of the module map. */
+static const hal_output coil_output[4] = {HAL_OUT_COMPRESSOR, HAL_OUT_SPRING_VALVE, HAL_OUT_VENT_VALVE,
+                                          HAL_OUT_ACC_VALVE};
+
+/* The stepper's commands: the coils as the controller last wrote them. */
+static void coil_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT])
 {
-    double t = t_s + 0.5 * TICK_MS / 1000.0;
-    return c->base_load_n + ((t >= c->step_on_s && t < c->step_off_s) ? c->step_load_n : 0.0);
+    (void)s;
+    const uint8_t *bits = ((modbus_mapping_t *)user)->tab_bits;
+    memset(out, 0, HAL_OUT_COUNT * sizeof out[0]);
+    for (int i = 0; i < 4; i++)
+        out[coil_output[i]] = bits[i] != 0;
 }
 
-static void read_coils(served_plant *sp)
+static uint64_t time_ms(const served_plant *sp)
 {
-    plant_inputs in = {
-        .compressor = sp->map->tab_bits[0] != 0,
-        .spring_valve = sp->map->tab_bits[1] != 0,
-        .vent_valve = sp->map->tab_bits[2] != 0,
-        .acc_valve = sp->map->tab_bits[3] != 0,
-        .load_n = load_at(&sp->cfg, sp->time_ms / 1000.0),
-    };
-    plant_set_inputs(&sp->pl, &in);
+    return (uint64_t)sp->st.k * LEVELER_TICK_MS;
 }
 
 static void publish(served_plant *sp)
@@ -87,18 +98,18 @@ static void publish(served_plant *sp)
     plant_sensor_counts(&sp->pl, &sp->cfg.sensors, &sp->rng, counts);
     for (int i = 0; i < 4; i++)
         sp->map->tab_input_registers[REG_COUNTS + i] = counts[i];
-    double load = rint(load_at(&sp->cfg, sp->time_ms / 1000.0)); /* the load cell reads the load now */
+    /* the load cell reads the load now */
+    double load = rint(sim_schedule_load_at(&sp->cursor, (double)time_ms(sp) / 1000.0));
     sp->map->tab_input_registers[REG_LOAD_N] = (uint16_t)(load < 0 ? 0 : load > 65535 ? 65535 : load);
-    uint32_t t = (uint32_t)sp->time_ms;
+    uint32_t t = (uint32_t)time_ms(sp);
     sp->map->tab_input_registers[REG_TIME_MS] = (uint16_t)(t >> 16);
     sp->map->tab_input_registers[REG_TIME_MS + 1] = (uint16_t)(t & 0xFFFFu);
 }
 
 static void advance_one_tick(served_plant *sp)
 {
-    read_coils(sp); /* valves as the controller last set them, load for this step */
-    plant_advance(&sp->pl, TICK_MS / 1000.0, sp->cfg.substeps_per_tick);
-    sp->time_ms += TICK_MS;
+    sim_stepper_decide(&sp->st); /* valves as the controller last set them, load for this step */
+    sim_stepper_advance(&sp->st);
 }
 
 static double mono_s(void)
@@ -108,173 +119,220 @@ static double mono_s(void)
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
-int main(int argc, char **argv)
+static int usage(void)
 {
-    const char *config = NULL, *address = "127.0.0.1", *port_file = NULL;
-    int port = 0, lockstep = 1;
-    double max_seconds = 0;
+    fprintf(stderr, "usage: leveler-plant-server --config FILE [--address A] [--port P] [--port-file F]"
+                    " [--clock lockstep|realtime] [--max-seconds S]\n");
+    return 2;
+}
+
+/* 0, or the exit status (2) after a message. */
+static int parse_args(int argc, char **argv, server_options *o)
+{
+    *o = (server_options){.address = "127.0.0.1", .lockstep = 1};
     for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--config") && i + 1 < argc)
-            config = argv[++i];
-        else if (!strcmp(argv[i], "--address") && i + 1 < argc)
-            address = argv[++i];
-        else if (!strcmp(argv[i], "--port") && i + 1 < argc)
-            port = atoi(argv[++i]);
-        else if (!strcmp(argv[i], "--port-file") && i + 1 < argc)
-            port_file = argv[++i];
-        else if (!strcmp(argv[i], "--clock") && i + 1 < argc) {
-            const char *c = argv[++i];
-            if (strcmp(c, "lockstep") && strcmp(c, "realtime")) {
-                fprintf(stderr, "leveler-plant-server: --clock: '%s' is not one of lockstep, realtime\n", c);
+        const char *a = argv[i];
+        if (i + 1 >= argc)
+            return usage();
+        const char *v = argv[++i];
+        if (!strcmp(a, "--config"))
+            o->config = v;
+        else if (!strcmp(a, "--address"))
+            o->address = v;
+        else if (!strcmp(a, "--port"))
+            o->port = atoi(v);
+        else if (!strcmp(a, "--port-file"))
+            o->port_file = v;
+        else if (!strcmp(a, "--clock")) {
+            if (strcmp(v, "lockstep") && strcmp(v, "realtime")) {
+                fprintf(stderr, "leveler-plant-server: --clock: '%s' is not one of lockstep, realtime\n", v);
                 return 2;
             }
-            lockstep = !strcmp(c, "lockstep");
-        } else if (!strcmp(argv[i], "--max-seconds") && i + 1 < argc)
-            max_seconds = atof(argv[++i]);
-        else {
-            fprintf(stderr, "usage: leveler-plant-server --config FILE [--address A] [--port P] [--port-file F]"
-                            " [--clock lockstep|realtime] [--max-seconds S]\n");
-            return 2;
-        }
+            o->lockstep = !strcmp(v, "lockstep");
+        } else if (!strcmp(a, "--max-seconds"))
+            o->max_seconds = atof(v);
+        else
+            return usage();
     }
-    if (config == NULL || port < 0 || port > 65535) {
+    if (o->config == NULL || o->port < 0 || o->port > 65535) {
         fprintf(stderr, "leveler-plant-server: --config FILE is required (and --port 0..65535)\n");
         return 2;
     }
+    return 0;
+}
 
-    static served_plant sp;
+/* The plant at 10 ms: the first tick ran under the [initial] actuators, which
+ * the coils now hold. 0, or the exit status after a message. */
+static int start_plant(served_plant *sp, const char *config)
+{
     char err[512];
-    if (plant_config_load(config, &sp.cfg, err, sizeof err) != 0) {
+    if (plant_config_load(config, &sp->cfg, err, sizeof err) != 0) {
         fprintf(stderr, "leveler-plant-server: %s\n", err);
         return 2;
     }
-    plant_init(&sp.pl, &sp.cfg.plant);
-    plant_rng_seed(&sp.rng, sp.cfg.sensors.noise_seed);
-    sp.map = modbus_mapping_new(8, 0, 8, 32);
-    modbus_t *ctx = modbus_new_tcp(address, port);
-    if (sp.map == NULL || ctx == NULL) {
+    sp->map = modbus_mapping_new(8, 0, 8, 32);
+    if (sp->map == NULL) {
         fprintf(stderr, "leveler-plant-server: %s\n", modbus_strerror(errno));
         return 1;
     }
-    /* The rig is already running when the controller takes over: the coils
-     * start as the config's [initial] actuators and the first tick runs under
-     * them, so the controller's first scan is at 10 ms (as leveler-sim). */
-    sp.map->tab_bits[0] = (uint8_t)sp.cfg.init_compressor;
-    sp.map->tab_bits[1] = (uint8_t)sp.cfg.init_spring_valve;
-    sp.map->tab_bits[2] = (uint8_t)sp.cfg.init_vent_valve;
-    sp.map->tab_bits[3] = (uint8_t)sp.cfg.init_acc_valve;
-    advance_one_tick(&sp);
-    publish(&sp);
+    plant_init(&sp->pl, &sp->cfg.plant);
+    plant_rng_seed(&sp->rng, sp->cfg.sensors.noise_seed);
+    double end_s;
+    sp->cursor = (sim_schedule_cursor){sp->steps, sim_schedule_from_config(&sp->cfg, sp->steps, &end_s), 0};
+    sp->st = (sim_stepper){.cfg = &sp->cfg, .plant = &sp->pl, .ops = &sim_nominal_plant,
+                           .commands = coil_commands, .commands_user = sp->map,
+                           .load = sim_load_from_schedule, .load_user = &sp->cursor, .initial_outputs = true};
+    sim_stepper_start(&sp->st);
+    sim_stepper_decide(&sp->st);
+    for (int i = 0; i < 4; i++)
+        sp->map->tab_bits[i] = sp->st.out[coil_output[i]];
+    sim_stepper_advance(&sp->st);
+    publish(sp);
+    return 0;
+}
 
-    int listen_fd = modbus_tcp_listen(ctx, MAX_CLIENTS);
-    if (listen_fd < 0) {
-        fprintf(stderr, "leveler-plant-server: cannot listen on %s:%d: %s\n", address, port, modbus_strerror(errno));
+/* Listen (and write the port file). 0, or the exit status after a message. */
+static int open_server(served_plant *sp, const server_options *o)
+{
+    sp->ctx = modbus_new_tcp(o->address, o->port);
+    if (sp->ctx == NULL) {
+        fprintf(stderr, "leveler-plant-server: %s\n", modbus_strerror(errno));
         return 1;
     }
+    sp->listen_fd = modbus_tcp_listen(sp->ctx, MAX_CLIENTS);
+    if (sp->listen_fd < 0) {
+        fprintf(stderr, "leveler-plant-server: cannot listen on %s:%d: %s\n", o->address, o->port,
+                modbus_strerror(errno));
+        return 1;
+    }
+    for (int i = 0; i < MAX_CLIENTS; i++)
+        sp->clients[i] = -1;
     struct sockaddr_in sa;
     socklen_t slen = sizeof sa;
-    getsockname(listen_fd, (struct sockaddr *)&sa, &slen);
-    if (port_file) {
+    getsockname(sp->listen_fd, (struct sockaddr *)&sa, &slen);
+    if (o->port_file) {
         char tmp[1024];
-        snprintf(tmp, sizeof tmp, "%s.tmp", port_file);
+        snprintf(tmp, sizeof tmp, "%s.tmp", o->port_file);
         FILE *f = fopen(tmp, "w");
-        if (f == NULL || fprintf(f, "%u\n", ntohs(sa.sin_port)) < 0 || fclose(f) != 0 || rename(tmp, port_file) != 0) {
-            fprintf(stderr, "leveler-plant-server: --port-file %s: %s\n", port_file, strerror(errno));
+        if (f == NULL || fprintf(f, "%u\n", ntohs(sa.sin_port)) < 0 || fclose(f) != 0 ||
+            rename(tmp, o->port_file) != 0) {
+            fprintf(stderr, "leveler-plant-server: --port-file %s: %s\n", o->port_file, strerror(errno));
             return 1;
         }
     }
-
     struct sigaction act;
     memset(&act, 0, sizeof act);
     act.sa_handler = on_signal;
     sigaction(SIGINT, &act, NULL);
     sigaction(SIGTERM, &act, NULL);
     signal(SIGPIPE, SIG_IGN);
+    return 0;
+}
 
-    int clients[MAX_CLIENTS];
+static void accept_client(served_plant *sp)
+{
+    int fd = accept(sp->listen_fd, NULL, NULL);
+    if (fd < 0)
+        return;
     for (int i = 0; i < MAX_CLIENTS; i++)
-        clients[i] = -1;
-    const double started = mono_s();
-    double next_tick = started + TICK_MS / 1000.0;
-    uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH];
-    const int header = modbus_get_header_length(ctx);
+        if (sp->clients[i] < 0) {
+            sp->clients[i] = fd;
+            return;
+        }
+    close(fd);
+}
 
+/* One request of client i: lockstep steps, then the reply from the fresh map. */
+static void serve_client(served_plant *sp, int i, int lockstep)
+{
+    uint8_t query[MODBUS_TCP_MAX_ADU_LENGTH];
+    const int header = modbus_get_header_length(sp->ctx);
+    modbus_set_socket(sp->ctx, sp->clients[i]);
+    int len = modbus_receive(sp->ctx, query);
+    if (len == 0)
+        return;
+    int function = len > 0 ? query[header] : -1;
+    if (function == MODBUS_FC_WRITE_SINGLE_REGISTER && lockstep &&
+        ((query[header + 1] << 8) | query[header + 2]) == REG_STEP) {
+        int step_ms = (query[header + 3] << 8) | query[header + 4];
+        for (int k = 0; k < step_ms / (int)LEVELER_TICK_MS; k++)
+            advance_one_tick(sp);
+    }
+    if (len > 0)
+        publish(sp);
+    if (len < 0 || modbus_reply(sp->ctx, query, len, sp->map) < 0) {
+        close(sp->clients[i]);
+        sp->clients[i] = -1;
+        return;
+    }
+    if (function == MODBUS_FC_WRITE_SINGLE_COIL || function == MODBUS_FC_WRITE_MULTIPLE_COILS)
+        sim_stepper_decide(&sp->st); /* a real-time plant sees the valves at once */
+}
+
+/* Wait for requests (and, in real time, for the next tick) at most until the next tick. */
+static void serve(served_plant *sp, const server_options *o)
+{
+    const double started = mono_s();
+    const double tick_s = LEVELER_TICK_MS / 1000.0;
+    double next_tick = started + tick_s;
     while (!stop_requested) {
         double now = mono_s();
-        if (max_seconds > 0 && now - started > max_seconds) {
-            fprintf(stderr, "leveler-plant-server: --max-seconds %g reached\n", max_seconds);
-            break;
+        if (o->max_seconds > 0 && now - started > o->max_seconds) {
+            fprintf(stderr, "leveler-plant-server: --max-seconds %g reached\n", o->max_seconds);
+            return;
         }
-        if (!lockstep) {
-            while (now >= next_tick) {
-                advance_one_tick(&sp);
-                next_tick += TICK_MS / 1000.0;
-            }
-            publish(&sp);
+        if (!o->lockstep) {
+            for (; now >= next_tick; next_tick += tick_s)
+                advance_one_tick(sp);
+            publish(sp);
         }
         fd_set rd;
         FD_ZERO(&rd);
-        FD_SET(listen_fd, &rd);
-        int maxfd = listen_fd;
+        FD_SET(sp->listen_fd, &rd);
+        int maxfd = sp->listen_fd;
         for (int i = 0; i < MAX_CLIENTS; i++)
-            if (clients[i] >= 0) {
-                FD_SET(clients[i], &rd);
-                maxfd = clients[i] > maxfd ? clients[i] : maxfd;
+            if (sp->clients[i] >= 0) {
+                FD_SET(sp->clients[i], &rd);
+                maxfd = sp->clients[i] > maxfd ? sp->clients[i] : maxfd;
             }
-        double wait_s = lockstep ? 0.1 : next_tick - mono_s();
-        if (wait_s < 0)
-            wait_s = 0;
-        struct timeval tv = {.tv_sec = (time_t)wait_s, .tv_usec = (suseconds_t)((wait_s - (double)(time_t)wait_s) * 1e6)};
-        int ready = select(maxfd + 1, &rd, NULL, NULL, &tv);
-        if (ready <= 0)
+        double wait_s = o->lockstep ? 0.1 : fmax(0.0, next_tick - mono_s());
+        struct timeval tv = {.tv_sec = (time_t)wait_s,
+                             .tv_usec = (suseconds_t)((wait_s - (double)(time_t)wait_s) * 1e6)};
+        if (select(maxfd + 1, &rd, NULL, NULL, &tv) <= 0)
             continue;
-        if (FD_ISSET(listen_fd, &rd)) {
-            int fd = accept(listen_fd, NULL, NULL);
-            int slot = -1;
-            for (int i = 0; i < MAX_CLIENTS && fd >= 0; i++)
-                if (clients[i] < 0) {
-                    slot = i;
-                    break;
-                }
-            if (slot >= 0)
-                clients[slot] = fd;
-            else if (fd >= 0)
-                close(fd);
-        }
-        for (int i = 0; i < MAX_CLIENTS; i++) {
-            if (clients[i] < 0 || !FD_ISSET(clients[i], &rd))
-                continue;
-            modbus_set_socket(ctx, clients[i]);
-            int len = modbus_receive(ctx, query);
-            if (len < 0) {
-                close(clients[i]);
-                clients[i] = -1;
-                continue;
-            }
-            if (len == 0)
-                continue;
-            int function = query[header];
-            int addr = (query[header + 1] << 8) | query[header + 2];
-            if (function == MODBUS_FC_WRITE_SINGLE_REGISTER && addr == REG_STEP && lockstep) {
-                int step_ms = (query[header + 3] << 8) | query[header + 4];
-                for (int k = 0; k < step_ms / TICK_MS; k++)
-                    advance_one_tick(&sp);
-            }
-            publish(&sp);
-            if (modbus_reply(ctx, query, len, sp.map) < 0) {
-                close(clients[i]);
-                clients[i] = -1;
-                continue;
-            }
-            if (function == MODBUS_FC_WRITE_SINGLE_COIL || function == MODBUS_FC_WRITE_MULTIPLE_COILS)
-                read_coils(&sp); /* a real-time plant sees the valves at once */
-        }
+        if (FD_ISSET(sp->listen_fd, &rd))
+            accept_client(sp);
+        for (int i = 0; i < MAX_CLIENTS; i++)
+            if (sp->clients[i] >= 0 && FD_ISSET(sp->clients[i], &rd))
+                serve_client(sp, i, o->lockstep);
     }
+}
+
+static void close_server(served_plant *sp)
+{
     for (int i = 0; i < MAX_CLIENTS; i++)
-        if (clients[i] >= 0)
-            close(clients[i]);
-    close(listen_fd);
-    modbus_free(ctx);
-    modbus_mapping_free(sp.map);
-    return 0;
+        if (sp->clients[i] >= 0)
+            close(sp->clients[i]);
+    if (sp->listen_fd >= 0)
+        close(sp->listen_fd);
+    if (sp->ctx)
+        modbus_free(sp->ctx);
+    if (sp->map)
+        modbus_mapping_free(sp->map);
+}
+
+int main(int argc, char **argv)
+{
+    server_options o;
+    static served_plant sp;
+    sp.listen_fd = -1;
+    int rc = parse_args(argc, argv, &o);
+    if (rc == 0)
+        rc = start_plant(&sp, o.config);
+    if (rc == 0)
+        rc = open_server(&sp, &o);
+    if (rc == 0)
+        serve(&sp, &o);
+    close_server(&sp);
+    return rc;
 }

@@ -105,8 +105,8 @@ static void log_tick(runlog *log, const rig_config *cfg, rig_sensors *sensors, c
         .p_acc_pa = p[2],
         .load_n = load_n,
         .compressor = out[HAL_OUT_COMPRESSOR],
-        .solenoid = out[HAL_OUT_SPRING_VALVE],
-        .vent = out[HAL_OUT_VENT_VALVE],
+        .spring_valve = out[HAL_OUT_SPRING_VALVE],
+        .vent_valve = out[HAL_OUT_VENT_VALVE],
         .acc_valve = cfg->pin[HAL_OUT_ACC_VALVE].configured ? out[HAL_OUT_ACC_VALVE] : -1,
     };
     if (isfinite(row.load_n) && runlog_write(log, &row) != 0)

@@ -74,12 +74,3 @@ int sim_commission(const plant_config *cfg, int algorithm, char *err, size_t len
     put_i32(charge, round_i32(cfg->plant.acc_charge_pa));
     return write_block(LEVELER_HR_ACC_CHARGE_MAX_PA, charge, 2, "accumulator charge", err, len);
 }
-
-void sim_initial_outputs(const plant_config *cfg, bool out[HAL_OUT_COUNT])
-{
-    memset(out, 0, HAL_OUT_COUNT * sizeof out[0]);
-    out[HAL_OUT_COMPRESSOR] = cfg->init_compressor != 0;
-    out[HAL_OUT_SPRING_VALVE] = cfg->init_spring_valve != 0;
-    out[HAL_OUT_VENT_VALVE] = cfg->init_vent_valve != 0;
-    out[HAL_OUT_ACC_VALVE] = cfg->init_acc_valve != 0;
-}

@@ -1,12 +1,16 @@
 /*
- * hal.h over the plant simulator. The simulator owns time and the sensor
- * counts; the firmware's outputs are read back after each tick. The serial
- * link is silent (no supervisor attached in the simulator).
+ * hal.h over the plant simulator, and the firmware as the stepper's commands
+ * hook (simloop.h). The simulator owns time and the sensor counts; the
+ * firmware's outputs are read back after each tick. The serial link is silent
+ * (no supervisor attached in the simulator).
  */
 #include "leveler/hal.h"
 #include "simloop.h"
 
 #include <string.h>
+
+#include "commission.h"
+#include "leveler/app.h"
 
 static struct {
     uint16_t counts[HAL_ADC_COUNT];
@@ -14,23 +18,19 @@ static struct {
     uint32_t now_ms;
 } hal_state;
 
-void sim_hal_reset(void)
+int sim_firmware_start(const plant_config *cfg, int algorithm, char *err, size_t err_len)
 {
     memset(&hal_state, 0, sizeof hal_state);
+    leveler_app_init();
+    return sim_commission(cfg, algorithm, err, err_len);
 }
 
-void sim_hal_set_counts(const uint16_t counts[4])
+void sim_firmware_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT])
 {
-    memcpy(hal_state.counts, counts, sizeof hal_state.counts);
-}
-
-void sim_hal_set_time_ms(uint32_t now_ms)
-{
-    hal_state.now_ms = now_ms;
-}
-
-void sim_hal_get_outputs(bool out[5])
-{
+    (void)user;
+    sim_stepper_counts(s, hal_state.counts);
+    hal_state.now_ms = (uint32_t)(s->k * LEVELER_TICK_MS);
+    leveler_app_tick();
     memcpy(out, hal_state.outputs, sizeof hal_state.outputs);
 }
 

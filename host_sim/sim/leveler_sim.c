@@ -193,7 +193,7 @@ int main(int argc, char **argv)
         return 2;
     }
 
-    runlog_options lo = {.path = log, .config_name = cfg.name, .source = "sim", .rotate_bytes = 0, .keep_files = 0};
+    runlog_options lo = {.path = log, .config_name = cfg.name, .source = "sim", .buffered = 1};
     runlog *rl = runlog_open(&lo, err, sizeof err);
     if (!rl) {
         fprintf(stderr, "leveler-sim: %s\n", err);

@@ -1,6 +1,6 @@
 /* Load schedules: the config's built-in scenario, or a CSV file t_s,load_n. */
 #define _POSIX_C_SOURCE 200809L
-#include "simloop.h"
+#include "stepper.h"
 
 #include <errno.h>
 #include <math.h>

@@ -26,8 +26,8 @@ _UNITS = {
     "si": (1.0, "height (m)", lambda p: p / 1e3, "pressure (kPa abs)"),
 }
 
-_ACTUATORS = (("compressor", "compressor", "#d62728"), ("solenoid", "spring valve", "#1f77b4"),
-              ("vent", "vent valve", "#2ca02c"), ("acc_valve", "accumulator valve", "#9467bd"))
+_ACTUATORS = (("compressor", "compressor", "#d62728"), ("spring_valve", "spring valve", "#1f77b4"),
+              ("vent_valve", "vent valve", "#2ca02c"), ("acc_valve", "accumulator valve", "#9467bd"))
 
 
 def _load_levels(log, analysis):

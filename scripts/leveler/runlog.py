@@ -2,10 +2,10 @@
 
 One CSV format for the simulator, the rig and the diagnosis tool::
 
-    # leveler run log, format 1
+    # leveler run log, format 2
     # config: thesis-900lb
     # source: sim
-    t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,solenoid,vent,acc_valve
+    t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,spring_valve,vent_valve,acc_valve
     0.000000,0.39751,613633.1,613633.1,,4003.4,0,0,0,0
 
 SI units, absolute pressures. Pressure and actuator cells may be empty where
@@ -30,14 +30,16 @@ from typing import Dict, Optional
 
 import numpy as np
 
-FORMAT_VERSION = 1
-SUPPORTED_VERSIONS = (1,)
+FORMAT_VERSION = 2
 
 COLUMNS = ("t_s", "height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa", "load_n",
-           "compressor", "solenoid", "vent", "acc_valve")
+           "compressor", "spring_valve", "vent_valve", "acc_valve")
+# The header each format has; format 1 called the valves solenoid and vent.
+HEADERS = {1: COLUMNS[:7] + ("solenoid", "vent", "acc_valve"), 2: COLUMNS}
+SUPPORTED_VERSIONS = tuple(HEADERS)
 REQUIRED = ("t_s", "height_m", "load_n")          # never empty
 PRESSURES = ("p_spring_pa", "p_pipe_pa", "p_acc_pa")
-ACTUATORS = ("compressor", "solenoid", "vent", "acc_valve")
+ACTUATORS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
 SOURCES = ("sim", "rig")
 
 _TITLE = re.compile(r"^#\s*leveler run log,\s*format\s+(\S+)\s*$")
@@ -69,8 +71,8 @@ class RunLog:
     p_acc_pa: np.ndarray
     load_n: np.ndarray
     compressor: np.ndarray
-    solenoid: np.ndarray
-    vent: np.ndarray
+    spring_valve: np.ndarray
+    vent_valve: np.ndarray
     acc_valve: np.ndarray
     format_version: int = FORMAT_VERSION
     config: str = ""
@@ -86,7 +88,7 @@ class RunLog:
 
     @classmethod
     def from_arrays(cls, t_s, height_m, load_n, p_spring_pa=None, p_pipe_pa=None,
-                    p_acc_pa=None, compressor=None, solenoid=None, vent=None,
+                    p_acc_pa=None, compressor=None, spring_valve=None, vent_valve=None,
                     acc_valve=None, config="", source="sim", meta=None):
         """Builds a log from arrays; missing optional columns become NaN."""
         t = np.asarray(t_s, dtype=float)
@@ -102,7 +104,7 @@ class RunLog:
                 raise ValueError(f"column has {a.shape} entries, t_s has {n}")
             return a
         return cls(t, col(height_m), col(p_spring_pa), col(p_pipe_pa), col(p_acc_pa),
-                   col(load_n), col(compressor), col(solenoid), col(vent), col(acc_valve),
+                   col(load_n), col(compressor), col(spring_valve), col(vent_valve), col(acc_valve),
                    FORMAT_VERSION, config, source, dict(meta or {}))
 
 
@@ -195,6 +197,18 @@ def read(path, check_unit=True):
     return parse(text, path=path, check_unit=check_unit)
 
 
+def _version(text, path, lineno):
+    """The format number of a title or ``# format:`` line; RunLogError if unknown."""
+    try:
+        version = int(text)
+    except ValueError:
+        raise RunLogError(path, lineno, f"format version '{text}' is not a number") from None
+    if version not in SUPPORTED_VERSIONS:
+        raise RunLogError(path, lineno, f"unknown format version {version} "
+                                        f"(this reader knows {', '.join(map(str, SUPPORTED_VERSIONS))})")
+    return version
+
+
 def parse(text, path="<string>", check_unit=True):
     """Parses run-log text; ``path`` is only used in error messages."""
     lines = text.splitlines()
@@ -207,38 +221,27 @@ def parse(text, path="<string>", check_unit=True):
         lineno += 1
         m = _TITLE.match(raw)
         if m:
-            try:
-                version = int(m.group(1))
-            except ValueError:
-                raise RunLogError(path, lineno, f"format version '{m.group(1)}' is not a number") from None
-            if version not in SUPPORTED_VERSIONS:
-                raise RunLogError(path, lineno, f"unknown format version {version} "
-                                                f"(this reader knows {', '.join(map(str, SUPPORTED_VERSIONS))})")
+            version = _version(m.group(1), path, lineno)
             continue
         m = _KEY_VALUE.match(raw)
         if m:
             key, value = m.group(1).lower(), m.group(2)
             if key == "format":
-                try:
-                    version = int(value)
-                except ValueError:
-                    raise RunLogError(path, lineno, f"format version '{value}' is not a number") from None
-                if version not in SUPPORTED_VERSIONS:
-                    raise RunLogError(path, lineno, f"unknown format version {version} "
-                                                    f"(this reader knows {', '.join(map(str, SUPPORTED_VERSIONS))})")
+                version = _version(value, path, lineno)
             else:
                 meta[key] = value
         # any other comment line is free text
     if version is None:
-        raise RunLogError(path, 1, "no format line ('# leveler run log, format 1') "
+        raise RunLogError(path, 1, f"no format line ('# leveler run log, format {FORMAT_VERSION}') "
                                    "in the comment block at the top")
+    expected = HEADERS[version]
     if lineno >= len(lines):
-        raise RunLogError(path, lineno + 1, "missing header line " + ",".join(COLUMNS))
+        raise RunLogError(path, lineno + 1, "missing header line " + ",".join(expected))
     header_line = lineno + 1
     header = [h.strip() for h in lines[lineno].split(",")]
     lineno += 1
-    missing = [c for c in COLUMNS if c not in header]
-    extra = [c for c in header if c not in COLUMNS]
+    missing = [c for c in expected if c not in header]
+    extra = [c for c in header if c not in expected]
     if missing or extra:
         parts = []
         if missing:
@@ -246,12 +249,12 @@ def parse(text, path="<string>", check_unit=True):
         if extra:
             parts.append("unknown column(s) " + ", ".join(repr(c) for c in extra))
         raise RunLogError(path, header_line, "header: " + "; ".join(parts)
-                          + "; expected " + ",".join(COLUMNS))
+                          + "; expected " + ",".join(expected))
     if len(set(header)) != len(header):
         raise RunLogError(path, header_line, "header: a column appears twice")
-    if header != list(COLUMNS):
+    if header != list(expected):
         raise RunLogError(path, header_line, "header: columns out of order; expected "
-                          + ",".join(COLUMNS))
+                          + ",".join(expected))
 
     source = meta.get("source", "")
     if source and source not in SOURCES:
@@ -272,14 +275,14 @@ def parse(text, path="<string>", check_unit=True):
             raise RunLogError(path, line, f"{len(cells)} cells, expected {ncol} ("
                               + ("missing cells" if len(cells) < ncol else "extra cells") + ")")
         row = data[nrows]
-        for j, (name, cell) in enumerate(zip(COLUMNS, cells)):
+        for j, (name, cell) in enumerate(zip(expected, cells)):
             cell = cell.strip()
             if cell == "":
                 if name in REQUIRED:
                     raise RunLogError(path, line, f"column {name}: empty cell (required)")
                 continue
             value = _parse_number(cell, path, line, name)
-            if name in ACTUATORS and value not in (0.0, 1.0):
+            if COLUMNS[j] in ACTUATORS and value not in (0.0, 1.0):
                 raise RunLogError(path, line, f"column {name}: actuator state '{cell}' is not 0 or 1")
             row[j] = value
         if nrows > 0 and not row[0] > data[nrows - 1, 0]:

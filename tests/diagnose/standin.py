@@ -24,7 +24,7 @@ class StandIn(Simulator):
         y, p2 = 0.3975, PA + load[0] / AREA
         lag = p2
         out = {k: np.empty(n) for k in ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")}
-        cmd = {k: np.zeros(n, dtype=np.int32) for k in ("compressor", "solenoid", "vent", "acc_valve")}
+        cmd = {k: np.zeros(n, dtype=np.int32) for k in ("compressor", "spring_valve", "vent_valve", "acc_valve")}
         comp = sol = vent = 0
         for i in range(n):
             dt = t[i] - t[i - 1] if i else 0.0
@@ -33,8 +33,8 @@ class StandIn(Simulator):
                 vent = int(y > BAND[1])
                 sol = comp | vent
             else:
-                comp, sol, vent = commands["compressor"][i], commands["solenoid"][i], commands["vent"][i]
-            cmd["compressor"][i], cmd["solenoid"][i], cmd["vent"][i] = comp, sol, vent
+                comp, sol, vent = commands["compressor"][i], commands["spring_valve"][i], commands["vent_valve"][i]
+            cmd["compressor"][i], cmd["spring_valve"][i], cmd["vent_valve"][i] = comp, sol, vent
             for _ in range(2):
                 h = dt / 2
                 f = (p2 - PA) * AREA - load[i]

@@ -64,7 +64,7 @@ def test_each_candidate_moves_the_trace(cplant, closed, name):
 def closed_valves_run(seconds=5.0):
     t = np.round(np.arange(0.0, seconds + 1e-9, 0.01), 2)
     load = np.full(len(t), 900.0 * LB)
-    zeros = {c: np.zeros(len(t), dtype=np.int32) for c in ("compressor", "solenoid", "vent", "acc_valve")}
+    zeros = {c: np.zeros(len(t), dtype=np.int32) for c in ("compressor", "spring_valve", "vent_valve", "acc_valve")}
     sig = {"height_m": np.full(len(t), 15.65 * IN), "p_spring_pa": np.full(len(t), 89.0 * PSI),
            "p_pipe_pa": np.full(len(t), 89.0 * PSI), "p_acc_pa": np.full(len(t), np.nan)}
     return Run("closed.csv", t, sig, load, zeros)

@@ -72,5 +72,5 @@ def make_log(dt=0.01, height_noise_m=0.0, p_noise_pa=0.0, height_quantum_m=0.0,
     p1 = np.where(solenoid > 0, p2 + 2000.0, thesis.psia_to_pa(89.0))
     return runlog.RunLog.from_arrays(
         t, h, load, p_spring_pa=p2, p_pipe_pa=p1, p_acc_pa=None,
-        compressor=compressor, solenoid=solenoid, vent=vent, acc_valve=0.0,
+        compressor=compressor, spring_valve=solenoid, vent_valve=vent, acc_valve=0.0,
         config=config, source=source)

@@ -9,7 +9,10 @@ import synth
 from leveler import runlog
 
 HEADER = ",".join(runlog.COLUMNS)
-TOP = "# leveler run log, format 1\n# config: thesis-900lb\n# source: rig\n" + HEADER + "\n"
+TOP = "# leveler run log, format 2\n# config: thesis-900lb\n# source: rig\n" + HEADER + "\n"
+# Format 1 (before the valves got their one name): still read.
+TOP_FORMAT1 = ("# leveler run log, format 1\n# config: thesis-900lb\n# source: rig\n"
+               "t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,solenoid,vent,acc_valve\n")
 ROW = "0.00,0.3975,613633,613633,,4003.4,0,0,0,0\n"
 
 
@@ -26,17 +29,17 @@ def rows(n, t0=0.0, dt=0.01, height="0.3975", p="613633", load="4003.4"):
 def test_round_trip_is_exact(tmp_path):
     log = synth.make_log(height_noise_m=0.3e-3, p_noise_pa=2000.0, end=3.0)
     log.p_pipe_pa[5] = np.nan           # an unmeasured cell
-    log.vent[7] = np.nan                 # an unknown actuator state
+    log.vent_valve[7] = np.nan                 # an unknown actuator state
     log.meta["operator"] = "bench 2"
     path = tmp_path / "r.csv"
     runlog.write(path, log)
     back = runlog.read(path)
     for c in runlog.COLUMNS:
         np.testing.assert_array_equal(back.column(c), log.column(c), err_msg=c)
-    assert (back.config, back.source, back.format_version) == ("thesis-900lb", "sim", 1)
+    assert (back.config, back.source, back.format_version) == ("thesis-900lb", "sim", 2)
     assert back.meta == {"operator": "bench 2"}
     text = path.read_text().splitlines()
-    assert text[0] == "# leveler run log, format 1" and text[4] == HEADER
+    assert text[0] == "# leveler run log, format 2" and text[4] == HEADER
 
 
 def test_reads_c_writer_style_and_empty_cells(tmp_path):
@@ -46,12 +49,25 @@ def test_reads_c_writer_style_and_empty_cells(tmp_path):
     log = runlog.read(p)
     assert log.source == "rig" and log.config == "thesis-900lb"
     assert math.isnan(log.p_pipe_pa[0]) and math.isnan(log.acc_valve[1])
-    assert math.isnan(log.solenoid[1]) and log.solenoid[0] == 1.0
+    assert math.isnan(log.spring_valve[1]) and log.spring_valve[0] == 1.0
     assert log.height_m[1] == pytest.approx(0.397515)
 
 
+def test_reads_format_1_with_its_valve_names(tmp_path):
+    p = write(tmp_path, TOP_FORMAT1 + "0.000000,0.39751,613633.1,,,4003.4,1,1,0,\n"
+                                      "0.010000,0.397515,613700,,,4003.4,1,0,1,\n")
+    log = runlog.read(p)
+    assert log.format_version == 1
+    np.testing.assert_array_equal(log.spring_valve, [1.0, 0.0])
+    np.testing.assert_array_equal(log.vent_valve, [0.0, 1.0])
+    with pytest.raises(runlog.RunLogError) as err:       # format 1 with format 2's names
+        runlog.read(write(tmp_path, TOP_FORMAT1.replace("solenoid,vent", "spring_valve,vent_valve")
+                          + ROW, "mixed.csv"))
+    assert str(err.value).startswith(f"{tmp_path / 'mixed.csv'}:4:") and "solenoid" in str(err.value)
+
+
 @pytest.mark.parametrize("text, line, words", [
-    ("# leveler run log, format 2\n" + HEADER + "\n" + ROW, 1, "unknown format version 2"),
+    ("# leveler run log, format 3\n" + HEADER + "\n" + ROW, 1, "unknown format version 3"),
     ("# config: x\n" + HEADER + "\n" + ROW, 1, "no format line"),
     (TOP.replace(",acc_valve", "") + ROW, 4, "missing column(s) acc_valve"),
     (TOP.replace("acc_valve", "acc_valve,extra") + ROW, 4, "unknown column(s) 'extra'"),
@@ -59,7 +75,9 @@ def test_reads_c_writer_style_and_empty_cells(tmp_path):
     (TOP + ROW + "0.01,0.3975,613633,613633,,4003.4,0,0,0,0,9\n", 6, "extra cells"),
     (TOP + ROW + "0.01,0.39x5,613633,613633,,4003.4,0,0,0,0\n", 6, "column height_m: '0.39x5' is not a number"),
     (TOP + ROW + "0.00,0.3975,613633,613633,,4003.4,0,0,0,0\n", 6, "column t_s: time 0.00 does not increase"),
-    (TOP + ROW + "0.01,0.3975,613633,613633,,4003.4,0,2,0,0\n", 6, "column solenoid: actuator state '2' is not 0 or 1"),
+    (TOP + ROW + "0.01,0.3975,613633,613633,,4003.4,0,2,0,0\n", 6, "column spring_valve: actuator state '2' is not 0 or 1"),
+    (TOP_FORMAT1 + ROW + "0.01,0.3975,613633,613633,,4003.4,0,2,0,0\n", 6,
+     "column solenoid: actuator state '2' is not 0 or 1"),
     (TOP + ROW + "0.01,,613633,613633,,4003.4,0,0,0,0\n", 6, "column height_m: empty cell"),
     (TOP + ROW + "0.01,0.3975,nan,613633,,4003.4,0,0,0,0\n", 6, "not a finite number"),
     (TOP, 5, "no data rows"),

@@ -19,9 +19,10 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "decimal.h"
 #include "runlog.h"
 
-#define HEADER_COLUMNS "t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,solenoid,vent,acc_valve"
+#define HEADER_COLUMNS "t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,spring_valve,vent_valve,acc_valve"
 
 static char dir[256];
 
@@ -60,7 +61,7 @@ static char *slurp(const char *path, size_t *len)
 static runlog_row sample_row(double t)
 {
     runlog_row r = {.t_s = t, .height_m = 0.39751, .p_spring_pa = 613633.5, .p_pipe_pa = 613000.25,
-                    .p_acc_pa = NAN, .load_n = 4003.4, .compressor = 1, .solenoid = 0, .vent = 0,
+                    .p_acc_pa = NAN, .load_n = 4003.4, .compressor = 1, .spring_valve = 0, .vent_valve = 0,
                     .acc_valve = -1};
     return r;
 }
@@ -104,14 +105,14 @@ static void writes_header_and_rows_with_empty_cells(void **state)
     runlog_row r = sample_row(1.25);
     assert_int_equal(runlog_write(log, &r), 0);
     runlog_row empty = {.t_s = 1.26, .height_m = 0.4, .p_spring_pa = NAN, .p_pipe_pa = NAN,
-                        .p_acc_pa = NAN, .load_n = 4003.4, .compressor = -1, .solenoid = -1,
-                        .vent = -1, .acc_valve = -1};
+                        .p_acc_pa = NAN, .load_n = 4003.4, .compressor = -1, .spring_valve = -1,
+                        .vent_valve = -1, .acc_valve = -1};
     assert_int_equal(runlog_write(log, &empty), 0);
     assert_int_equal(runlog_close(log), 0);
 
     char *text = slurp(path, NULL);
     assert_non_null(text);
-    assert_string_equal(text, "# leveler run log, format 1\n# config: thesis-900lb\n# source: rig\n" HEADER_COLUMNS "\n"
+    assert_string_equal(text, "# leveler run log, format 2\n# config: thesis-900lb\n# source: rig\n" HEADER_COLUMNS "\n"
                               "1.250000,0.39751,613633.5,613000.25,,4003.4,1,0,0,\n"
                               "1.260000,0.4,,,,4003.4,,,,\n");
     /* Values survive the text round trip to the precision the analysis needs. */
@@ -156,7 +157,7 @@ static void rotates_by_size_and_keeps_n_files(void **state)
         char *text = slurp(name, &len);
         assert_non_null(text);
         assert_true(len <= limit);
-        assert_non_null(strstr(text, "# leveler run log, format 1\n"));
+        assert_non_null(strstr(text, "# leveler run log, format 2\n"));
         rows += check_complete_lines(text, len);
         free(last_first_row);
         last_first_row = text;
@@ -180,13 +181,15 @@ static void sigterm_never_tears_a_line(void **state)
     (void)state;
     char path[300];
     snprintf(path, sizeof path, "%s/kill.csv", dir);
-    for (int round = 0; round < 5; round++) {
+    for (int round = 0; round < 10; round++) {
+        int buffered = round % 2; /* the rig's line-at-a-time log and the simulator's buffered one */
         unlink(path);
         pid_t pid = fork();
         assert_true(pid >= 0);
         if (pid == 0) {
             char err[200];
-            runlog_options o = {.path = path, .config_name = "c", .source = "rig", .rotate_bytes = 200000, .keep_files = 1};
+            runlog_options o = {.path = path, .config_name = "c", .source = "rig", .rotate_bytes = 200000,
+                                .keep_files = 1, .buffered = buffered};
             runlog *log = runlog_open(&o, err, sizeof err);
             if (!log)
                 _exit(3);
@@ -203,7 +206,7 @@ static void sigterm_never_tears_a_line(void **state)
             struct timespec ms = {0, 1000000L};
             nanosleep(&ms, NULL);
         }
-        struct timespec ts = {0, 1000000L + round * 3000000L};
+        struct timespec ts = {0, 1000000L + (round / 2) * 3000000L};
         nanosleep(&ts, NULL);
         kill(pid, SIGTERM); /* default action: killed between or inside write() calls */
         int status;
@@ -217,6 +220,94 @@ static void sigterm_never_tears_a_line(void **state)
     }
 }
 
+/* /dev/null takes a log (nothing to fsync there), buffered or not. */
+static void dev_null_is_a_log(void **state)
+{
+    (void)state;
+    for (int buffered = 0; buffered <= 1; buffered++) {
+        char err[200];
+        runlog_options o = {.path = "/dev/null", .config_name = "c", .source = "sim", .buffered = buffered};
+        runlog *log = runlog_open(&o, err, sizeof err);
+        assert_non_null(log);
+        for (int i = 0; i < 3000; i++) {
+            runlog_row r = sample_row(i * 0.01);
+            assert_int_equal(runlog_write(log, &r), 0);
+        }
+        assert_int_equal(runlog_close(log), 0);
+    }
+}
+
+/* The buffered log holds the same bytes as the line-at-a-time one. */
+static void buffered_log_has_the_same_bytes(void **state)
+{
+    (void)state;
+    char paths[2][300];
+    char *text[2];
+    size_t len[2];
+    for (int buffered = 0; buffered <= 1; buffered++) {
+        snprintf(paths[buffered], sizeof paths[buffered], "%s/same%d.csv", dir, buffered);
+        char err[200];
+        runlog_options o = {.path = paths[buffered], .config_name = "c", .source = "sim", .buffered = buffered};
+        runlog *log = runlog_open(&o, err, sizeof err);
+        assert_non_null(log);
+        for (int i = 0; i < 5000; i++) { /* more than one buffer's worth */
+            runlog_row r = sample_row(i * 0.01);
+            assert_int_equal(runlog_write(log, &r), 0);
+        }
+        assert_int_equal(runlog_close(log), 0);
+        text[buffered] = slurp(paths[buffered], &len[buffered]);
+        assert_non_null(text[buffered]);
+    }
+    assert_true(len[0] > 65536);
+    assert_int_equal(len[0], len[1]);
+    assert_memory_equal(text[0], text[1], len[0]);
+    free(text[0]);
+    free(text[1]);
+}
+
+/* The log's numbers are printf's "%.9g" and "%.6f", character for character
+ * (decimal.h takes an exact integer path): glibc is the reference. */
+static void numbers_are_printfs(void **state)
+{
+    (void)state;
+    static const double edges[] = {0.0, -0.0, 1e-4, 9.99999999e-5, 1e8, 99999999.5, 0.5, 2.5, 1234567.125,
+                                   0.395, 613633.1, 4003.4, 1e-5, 123456789.0, -0.39751, 5e-324, 1e300,
+                                   0.1, 55.0, 54.99, 0.00999999999, 1e12, -1e-7};
+    char mine[DECIMAL_MAX], ref[64];
+    uint64_t x = 88172645463325252ull;
+    for (int i = 0; i < 400000; i++) {
+        double v;
+        if (i < (int)(sizeof edges / sizeof edges[0])) {
+            v = edges[i];
+        } else {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            if (i % 3 == 0) {
+                memcpy(&v, &x, sizeof v); /* any bit pattern */
+                if (!isfinite(v))
+                    continue;
+            } else if (i % 3 == 1) {
+                v = (double)(x >> 11) / 9007199254740992.0 * pow(10.0, (double)((int)(x % 16u) - 6));
+            } else {
+                v = (double)(int64_t)(x % 2000000000u) / pow(10.0, (double)(x % 12u)); /* decimal-looking */
+            }
+            if (x & 1u)
+                v = -v;
+        }
+        decimal_g9(v, mine);
+        snprintf(ref, sizeof ref, "%.9g", v);
+        if (strcmp(mine, ref) != 0)
+            fail_msg("%%.9g of %.17g: %s, printf %s", v, mine, ref);
+        if (fabs(v) < 1e12) {
+            decimal_f6(v, mine);
+            snprintf(ref, sizeof ref, "%.6f", v);
+            if (strcmp(mine, ref) != 0)
+                fail_msg("%%.6f of %.17g: %s, printf %s", v, mine, ref);
+        }
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -224,6 +315,9 @@ int main(void)
         cmocka_unit_test(open_failure_names_the_path),
         cmocka_unit_test(rotates_by_size_and_keeps_n_files),
         cmocka_unit_test(sigterm_never_tears_a_line),
+        cmocka_unit_test(dev_null_is_a_log),
+        cmocka_unit_test(buffered_log_has_the_same_bytes),
+        cmocka_unit_test(numbers_are_printfs),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

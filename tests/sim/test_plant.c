@@ -343,9 +343,9 @@ static void firmware_equals_program(const char *config)
     int switches = 0;
     double worst_dy = 0.0;
     for (int k = 0; k <= PROGRAM_STEPS; k++) {
-        if (rows[k].compressor != r.out[k][0] || rows[k].solenoid != r.out[k][1] || rows[k].vent != r.out[k][2])
+        if (rows[k].compressor != r.out[k][0] || rows[k].spring_valve != r.out[k][1] || rows[k].vent_valve != r.out[k][2])
             fail_msg("%s: t = %.2f s: firmware %d%d%d, program %d%d%d (compressor, solenoid, vent)", config,
-                     rows[k].t_s, rows[k].compressor, rows[k].solenoid, rows[k].vent, r.out[k][0], r.out[k][1],
+                     rows[k].t_s, rows[k].compressor, rows[k].spring_valve, rows[k].vent_valve, r.out[k][0], r.out[k][1],
                      r.out[k][2]);
         if (k > 0 && memcmp(r.out[k], r.out[k - 1], sizeof r.out[k]) != 0)
             switches++;

@@ -2,21 +2,22 @@
  * Run-log writer: one CSV format for simulator, rig and diagnosis
  * (docs/log-format.md). SI units, absolute pressures.
  *
- *   # leveler run log, format 1
+ *   # leveler run log, format 2
  *   # config: thesis-900lb
  *   # source: sim            (or rig)
- *   t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,solenoid,vent,acc_valve
+ *   t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,spring_valve,vent_valve,acc_valve
  *
- * Lines are written whole (one write per line, line-buffered), so a process
- * stopped by SIGTERM leaves no torn line. Optional rotation by size, with
- * fsync on rotation and on close.
+ * Lines are written whole, so a process stopped by SIGTERM leaves no torn
+ * line: one write per line with fsync on rotation and close (the rig), or
+ * whole lines collected in a 64 KiB buffer (buffered: the simulator).
+ * Optional rotation by size.
  */
 #ifndef LEVELER_RUNLOG_H
 #define LEVELER_RUNLOG_H
 
 #include <stddef.h>
 
-#define RUNLOG_FORMAT_VERSION 1
+#define RUNLOG_FORMAT_VERSION 2
 
 typedef struct {
     double t_s;
@@ -26,8 +27,8 @@ typedef struct {
     double p_acc_pa;    /* NAN = empty */
     double load_n;
     int compressor;     /* 0/1, -1 = empty */
-    int solenoid;
-    int vent;
+    int spring_valve;
+    int vent_valve;
     int acc_valve;
 } runlog_row;
 
@@ -37,6 +38,7 @@ typedef struct {
     const char *source;       /* "sim" or "rig" */
     size_t rotate_bytes;      /* 0 = never rotate; else start path.1, path.2 ... past this size */
     unsigned keep_files;      /* rotated files kept (oldest removed) */
+    int buffered;             /* 1: whole lines collected and written together, no fsync (the simulator) */
 } runlog_options;
 
 typedef struct runlog runlog;
@@ -45,7 +47,7 @@ typedef struct runlog runlog;
 runlog *runlog_open(const runlog_options *options, char *err, size_t err_len);
 /* 0 on success, -1 on an I/O error (errno set). */
 int runlog_write(runlog *log, const runlog_row *row);
-/* Flush, fsync and close. 0 on success. */
+/* Flush, fsync (line-buffered logs) and close. 0 on success. */
 int runlog_close(runlog *log);
 
 #endif /* LEVELER_RUNLOG_H */

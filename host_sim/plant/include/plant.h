@@ -7,10 +7,10 @@
  *
  * No global state: everything lives in a plant value, so Python (ctypes), the
  * rig's Modbus server and the simulator can run as many as they like.
- * The right-hand side of the ODE is ONE function, plant_derivatives(); the
- * place to add unmodelled effects (thermal lag, friction, valve/line delay,
- * leak, sensor lag, nonlinear area) is marked "EXTENSION POINT" there, and
- * extra states go after PLANT_X_VEL (bump PLANT_NX).
+ * The right-hand side of the ODE is ONE function, plant_derivatives(), and
+ * ONE RK4 step integrates it (plant_rk4_step); unmodelled effects
+ * (host_sim/plant/effects.h) add their corrections to its result and their
+ * states after PLANT_NX, and step through the same plant_rk4_step.
  *
  * Configuration files: docs/config-format.md.
  */
@@ -214,7 +214,14 @@ void plant_set_inputs(plant *pl, const plant_inputs *in);
 /* The ODE right-hand side at state x, with the inputs and damping in force.
  * flows may be NULL. */
 void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PLANT_NX], plant_flows *flows);
-/* One classical RK4 step of dt_s (damping chosen from the velocity at its start). */
+/* Right-hand side of an ODE over x[0..n): the plant's states first. */
+typedef void (*plant_rhs_fn)(const void *ctx, const double *x, double *dxdt);
+#define PLANT_RK4_MAX_NX 16
+/* THE classical RK4 step of h over x[0..n) (n <= PLANT_RK4_MAX_NX; x starts with
+ * the plant's PLANT_NX states): damping chosen from the velocity at its start
+ * (kept while at rest), pl->t_s advanced, then the platform's end stops. */
+void plant_rk4_step(plant *pl, double *x, int n, plant_rhs_fn rhs, const void *ctx, double h);
+/* plant_rk4_step of the nominal plant on pl->x. */
 void plant_step(plant *pl, double dt_s);
 /* substeps equal RK4 steps covering dt_s. */
 void plant_advance(plant *pl, double dt_s, int substeps);
@@ -242,8 +249,14 @@ typedef struct {
 } plant_rng;
 void plant_rng_seed(plant_rng *r, uint32_t seed);
 
-/* ADC counts for HAL channels 0 height, 1 P2, 2 P1, 3 P3 (clamped 0..4095).
- * Without an accumulator P3 reads ambient. rng may be NULL when noise is 0. */
+/* What ideal transducers report: height m, P2, P1, P3 Pa abs (P3 reads
+ * ambient without an accumulator). */
+void plant_sensed(const plant *pl, double out[4]);
+/* THE mapping of sensed values to ADC counts for HAL channels 0 height, 1 P2,
+ * 2 P1, 3 P3: the config's two-point spans, rounded, clamped 0..4095, plus
+ * noise when sp->noise_counts > 0 and rng is given. */
+void plant_counts(const plant_sensor_params *sp, const double sensed[4], plant_rng *rng, uint16_t counts[4]);
+/* plant_counts of plant_sensed. */
 void plant_sensor_counts(const plant *pl, const plant_sensor_params *sp, plant_rng *rng, uint16_t counts[4]);
 
 #endif /* LEVELER_PLANT_H */

@@ -2,7 +2,7 @@
  * What a commissioning engineer writes into the firmware before a run, through
  * the register map (so the same validation applies as for a SCADA write):
  * the transducer calibration of the config's sensor spans, the band, the
- * algorithm and the accumulator charge; and the actuators a run starts with.
+ * algorithm and the accumulator charge.
  * Used by leveler-sim and by the diagnosis library, so both run the firmware
  * set up the same way.
  */
@@ -17,9 +17,5 @@
 
 /* 0, or -1 with "firmware refused <what> (holding a..b, reason r)" in err. */
 int sim_commission(const plant_config *cfg, int algorithm, char *err, size_t len);
-
-/* The actuators over a run's first tick, before the firmware's first decision:
- * the config's [initial] section, indexed by hal_output (status LED off). */
-void sim_initial_outputs(const plant_config *cfg, bool out[HAL_OUT_COUNT]);
 
 #endif /* LEVELER_SIM_COMMISSION_H */

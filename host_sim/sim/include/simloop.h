@@ -1,6 +1,7 @@
 /*
  * Firmware in the loop: the plant (leveler_plant), the HAL over it
- * (hal_sim.c) and the unchanged firmware (leveler_firmware).
+ * (hal_sim.c) and the unchanged firmware (leveler_firmware), stepped by the
+ * one tick loop (stepper.h).
  *
  * Each 10 ms tick: the load schedule sets the load, the plant integrates
  * 10 ms with RK4 (config [solver] substeps_per_tick fixed sub-steps) under the
@@ -21,20 +22,7 @@
 
 #include "plant.h"
 #include "runlog.h"
-
-typedef struct {
-    double t_s;    /* the load takes effect at this time */
-    double load_n; /* absolute load */
-} sim_load_step;
-
-/* The config's built-in scenario (base, +step at step_on, removed at step_off,
- * end): out needs room for 4 steps. Returns the count; *end_s = scenario end. */
-size_t sim_schedule_from_config(const plant_config *cfg, sim_load_step out[4], double *end_s);
-
-/* A schedule file (CSV t_s,load_n; docs/config-format.md). On success *steps is
- * malloc'ed (free it) and the run ends at the last time. -1 with
- * "file:line: ..." in err on failure. */
-int sim_schedule_load(const char *path, sim_load_step **steps, size_t *count, char *err, size_t err_len);
+#include "stepper.h"
 
 typedef struct {
     const plant_config *config;
@@ -60,10 +48,11 @@ typedef struct {
  * setting, log write error). */
 int sim_run(const sim_options *opt, sim_result *res, char *err, size_t err_len);
 
-/* hal_sim.c: the HAL's view of the plant. */
-void sim_hal_reset(void);
-void sim_hal_set_counts(const uint16_t counts[4]);
-void sim_hal_set_time_ms(uint32_t now_ms);
-void sim_hal_get_outputs(bool out[5]);
+/* hal_sim.c: the firmware as the stepper's commands hook. sim_firmware_start
+ * resets the HAL and the firmware and commissions it (commission.h); 0 or -1
+ * with the refusal in err. sim_firmware_commands hands the tick's counts and
+ * time (k * 10 ms) to the HAL, runs leveler_app_tick() and reads the outputs. */
+int sim_firmware_start(const plant_config *cfg, int algorithm, char *err, size_t err_len);
+void sim_firmware_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT]);
 
 #endif /* LEVELER_SIMLOOP_H */

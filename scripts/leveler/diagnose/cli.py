@@ -79,8 +79,8 @@ def run(a, say):
             if r.config and r.config != a.config:
                 say(f"warning: {r.path}: logged config {r.config!r} differs from --config {a.config!r}")
             if mode == "replay" and not r.has_commands:
-                raise DiagnoseInputError(f"{r.path}: --mode replay needs the compressor, solenoid and "
-                                         f"vent columns filled in")
+                raise DiagnoseInputError(f"{r.path}: --mode replay needs the compressor, spring_valve and "
+                                         f"vent_valve columns filled in")
     result, traces = pipeline.diagnose(a.simulator, sim, a.config, calib, holdout, mode, candidates,
                                        a.jobs, say,
                                        {"starts": 8, "max_nfev": 15, "polish": 1} if a.fast else None)

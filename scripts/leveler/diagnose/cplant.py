@@ -20,7 +20,7 @@ ABI = 1
 MAX_PARAMS = 8
 TRUTH = 100
 SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
-COMMANDS = ("compressor", "solenoid", "vent", "acc_valve")
+COMMANDS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
 
 
 def find_library():

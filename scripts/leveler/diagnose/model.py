@@ -21,7 +21,7 @@ CLOSED_LOOP = "closed_loop"
 class Trace:
     t_s: np.ndarray
     signals: dict        # height_m, p_spring_pa, p_pipe_pa, p_acc_pa (as a sensor would read them)
-    commands: dict       # compressor, solenoid, vent, acc_valve as driven
+    commands: dict       # compressor, spring_valve, vent_valve, acc_valve as driven
 
 
 class Simulator:

@@ -14,7 +14,7 @@ from leveler import runlog
 
 from .errors import DiagnoseInputError
 
-COMMANDS = ("compressor", "solenoid", "vent", "acc_valve")
+COMMANDS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
 SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
 MIN_ROWS = 50
 
@@ -36,7 +36,7 @@ class Run:
 
     @property
     def has_commands(self):
-        return all(c in self.commands for c in ("compressor", "solenoid", "vent"))
+        return all(c in self.commands for c in ("compressor", "spring_valve", "vent_valve"))
 
     def measured(self, signal):
         a = self.signals.get(signal)

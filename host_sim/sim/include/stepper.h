@@ -1,0 +1,113 @@
+/*
+ * THE tick loop of a simulated run, shared by leveler-sim (simloop.c), the
+ * plant server (host_sim/rig/plant_server.c), the diagnosis library
+ * (host_sim/diagnose/diag_shim.c) and anything else that steps the plant
+ * against a controller.
+ *
+ * Each tick k at time t_k:
+ *   decide   what the transducers report (ops->sensed), the actuators from the
+ *            commands hook (firmware in the loop, replayed log, Modbus coils),
+ *            except at k = 0 when the config's [initial] actuators are asked for;
+ *            the load from the load hook; both become the plant's inputs;
+ *   advance  the plant integrates to t_(k+1) under them (ops->advance, RK4 with
+ *            [solver] substeps_per_tick per 10 ms).
+ * The stepper owns neither the firmware nor a log: hooks bring them in, so the
+ * plant server links it without the firmware.
+ */
+#ifndef LEVELER_SIM_STEPPER_H
+#define LEVELER_SIM_STEPPER_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "leveler/app.h"
+#include "leveler/hal.h"
+#include "plant.h"
+
+/* The firmware's tick (leveler/app.h) is the simulator's time step. */
+#define SIM_TICK_S (LEVELER_TICK_MS / 1000.0)
+
+/* ---- loads ---- */
+
+typedef struct {
+    double t_s;    /* the load takes effect at this time */
+    double load_n; /* absolute load */
+} sim_load_step;
+
+/* The config's built-in scenario (base, +step at step_on, removed at step_off,
+ * end): out needs room for 4 steps. Returns the count; *end_s = scenario end. */
+size_t sim_schedule_from_config(const plant_config *cfg, sim_load_step out[4], double *end_s);
+
+/* A schedule file (CSV t_s,load_n; docs/config-format.md). On success *steps is
+ * malloc'ed (free it) and the run ends at the last time. -1 with
+ * "file:line: ..." in err on failure. */
+int sim_schedule_load(const char *path, sim_load_step **steps, size_t *count, char *err, size_t err_len);
+
+/* THE scenario-to-load rule: the load over the tick starting at t_s is the
+ * last step at or before t_s (half a tick of slack against rounding). The
+ * cursor only moves forward; past the last step the last load holds. */
+typedef struct {
+    const sim_load_step *steps;
+    size_t count;
+    size_t i;
+} sim_schedule_cursor;
+double sim_schedule_load_at(sim_schedule_cursor *c, double t_s);
+
+/* ---- the plant behind the stepper ---- */
+
+typedef struct {
+    void (*set_inputs)(void *plant, const plant_inputs *in);
+    void (*advance)(void *plant, double dt_s, int substeps);
+    /* height m, P2, P1, P3 Pa abs as the transducers report them */
+    void (*sensed)(const void *plant, double out[4]);
+} sim_plant_ops;
+
+extern const sim_plant_ops sim_nominal_plant; /* plant.h's plant */
+
+/* ---- the stepper ---- */
+
+typedef struct sim_stepper sim_stepper;
+
+/* Sets out[HAL_OUT_COUNT] for tick k (s->k, s->t_s_now); may call sim_stepper_counts. */
+typedef void (*sim_commands_fn)(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT]);
+/* The load over tick k starting at t_s. */
+typedef double (*sim_load_fn)(sim_stepper *s, void *user, double t_s);
+
+struct sim_stepper {
+    const plant_config *cfg;
+    void *plant;
+    const sim_plant_ops *ops;
+    sim_commands_fn commands;
+    void *commands_user;
+    sim_load_fn load;
+    void *load_user;
+    plant_rng *rng;          /* sensor noise ([sensors] noise_counts); NULL = none */
+    bool initial_outputs;    /* tick 0 runs under the config's [initial] actuators */
+    const double *times_s;   /* optional time base t_k (n of them); NULL = k * 10 ms */
+    size_t n_times;
+    /* the tick in progress */
+    size_t k;
+    double t_s_now;
+    double sensed[4];
+    bool out[HAL_OUT_COUNT];
+    plant_inputs in;
+};
+
+/* The actuators over a run's first tick, before the controller's first
+ * decision: the config's [initial] section, indexed by hal_output. */
+void sim_initial_outputs(const plant_config *cfg, bool out[HAL_OUT_COUNT]);
+
+/* Tick 0 at t_0; the hooks and plant must be set. */
+void sim_stepper_start(sim_stepper *s);
+/* Decide tick k: sensed values, actuators, load -> the plant's inputs. */
+void sim_stepper_decide(sim_stepper *s);
+/* ADC counts of s->sensed (plant_counts with the stepper's noise). */
+void sim_stepper_counts(sim_stepper *s, uint16_t counts[4]);
+/* Integrate to the next tick (k + 1). -1 if the time base does not increase. */
+int sim_stepper_advance(sim_stepper *s);
+
+/* Ready-made load hook over a schedule cursor (user = sim_schedule_cursor *). */
+double sim_load_from_schedule(sim_stepper *s, void *user, double t_s);
+
+#endif /* LEVELER_SIM_STEPPER_H */
