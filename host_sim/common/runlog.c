@@ -8,8 +8,9 @@
  * stdio buffer is involved and only whole lines reach the file, so a reader
  * of a process stopped by SIGTERM sees whole lines.
  * Rotation: when the next line would push the current file past rotate_bytes,
- * the file is fsync'ed and closed, path.(k) -> path.(k+1) for k = keep-1..1,
- * path -> path.1, and a fresh path starts with the same header.
+ * the file is fsync'ed, path.(k) -> path.(k+1) for k = keep-1..1, path ->
+ * path.1, and a fresh path starts with the same header and that line; path
+ * exists at every moment (rotate()).
  */
 #define _POSIX_C_SOURCE 200809L
 #include "runlog.h"
@@ -19,6 +20,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -56,11 +58,17 @@ static int write_all(int fd, const char *buf, size_t len)
     return 0;
 }
 
+/* A fatal signal can cut a large write() to a file short at a page boundary,
+ * so the buffer goes out with signals held: a SIGTERM then lands after it. */
 static int flush_buffer(runlog *log)
 {
     if (log->buf_len == 0)
         return 0;
+    sigset_t all, old;
+    sigfillset(&all);
+    sigprocmask(SIG_BLOCK, &all, &old);
     int rc = write_all(log->fd, log->buf, log->buf_len);
+    sigprocmask(SIG_SETMASK, &old, NULL);
     log->buf_len = 0;
     return rc;
 }
@@ -84,24 +92,25 @@ static int numbered_path(char *buf, size_t cap, const char *path, unsigned n)
     return (len < 0 || (size_t)len >= cap) ? -1 : 0;
 }
 
-static int rotate(runlog *log)
+/* Rotation keeps path in place at every moment, with whole lines and at
+ * least one row: the next file (header + the line that did not fit) is
+ * written as path.tmp, the full one is linked to path.1 (older ones shifted
+ * up first) and path.tmp is renamed over path. */
+static int rotate(runlog *log, const char *line, size_t len)
 {
-    if (flush_buffer(log) != 0 || fsync(log->fd) != 0 || close(log->fd) != 0) {
-        log->fd = -1;
+    if (flush_buffer(log) != 0 || fsync(log->fd) != 0)
         return -1;
-    }
-    log->fd = -1;
     size_t cap = strlen(log->path) + 16;
-    char *from = malloc(cap);
-    char *to = malloc(cap);
-    int rc = -1;
-    if (from == NULL || to == NULL)
+    char *tmp = malloc(cap), *from = malloc(cap), *to = malloc(cap);
+    int rc = -1, fd = -1;
+    if (tmp == NULL || from == NULL || to == NULL)
         goto out;
-    if (log->keep_files == 0) {
-        if (unlink(log->path) != 0 && errno != ENOENT)
-            goto out;
-    } else {
-        /* Drop the oldest, then shift each one up by one. */
+    snprintf(tmp, cap, "%s.tmp", log->path);
+    fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd < 0 || write_all(fd, log->header, log->header_len) != 0 || write_all(fd, line, len) != 0)
+        goto out;
+    if (log->keep_files > 0) {
+        /* Drop the oldest, shift each one up by one, then path.1 = path. */
         numbered_path(to, cap, log->path, log->keep_files);
         if (unlink(to) != 0 && errno != ENOENT)
             goto out;
@@ -112,11 +121,20 @@ static int rotate(runlog *log)
                 goto out;
         }
         numbered_path(to, cap, log->path, 1);
-        if (rename(log->path, to) != 0)
+        if (link(log->path, to) != 0)
             goto out;
     }
-    rc = open_fresh(log);
+    if (rename(tmp, log->path) != 0)
+        goto out;
+    close(log->fd);
+    log->fd = fd;
+    fd = -1;
+    log->file_bytes = log->header_len + len;
+    rc = 0;
 out:
+    if (fd >= 0)
+        close(fd);
+    free(tmp);
     free(from);
     free(to);
     return rc;
@@ -257,10 +275,8 @@ int runlog_write(runlog *log, const runlog_row *row)
     }
 
     if (log->rotate_bytes > 0 && log->file_bytes > log->header_len &&
-        log->file_bytes + line.len > log->rotate_bytes) {
-        if (rotate(log) != 0)
-            return -1;
-    }
+        log->file_bytes + line.len > log->rotate_bytes)
+        return rotate(log, line.buf, line.len); /* the line starts the next file */
     if (log->buf) {
         if (log->buf_len + line.len > RUNLOG_BUFFER_BYTES && flush_buffer(log) != 0)
             return -1;
@@ -286,7 +302,7 @@ int runlog_close(runlog *log)
         return 0;
     int rc = 0;
     if (log->fd < 0) {
-        rc = -1; /* a failed rotation left no file open */
+        rc = -1;
     } else {
         if (flush_buffer(log) != 0)
             rc = -1;
