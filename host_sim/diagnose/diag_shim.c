@@ -147,3 +147,23 @@ int diag_simulate(const char *config_path, int n, const double *t_s, const doubl
     }
     return 0;
 }
+
+/* The load over each tick starting at t_s[i] of a scenario (base, +step from
+ * step_on to step_off, end), by the simulator's one rule (stepper.h): for
+ * runs known only by their event figures (scripts/leveler/diagnose/features.py). */
+void diag_scenario_loads(double base_load_n, double step_load_n, double step_on_s, double step_off_s,
+                         double end_s, int n, const double *t_s, double *load_n)
+{
+    plant_config cfg;
+    memset(&cfg, 0, sizeof cfg);
+    cfg.base_load_n = base_load_n;
+    cfg.step_load_n = step_load_n;
+    cfg.step_on_s = step_on_s;
+    cfg.step_off_s = step_off_s;
+    cfg.end_s = end_s;
+    sim_load_step steps[4];
+    double end;
+    sim_schedule_cursor c = {steps, sim_schedule_from_config(&cfg, steps, &end), 0};
+    for (int i = 0; i < n; i++)
+        load_n[i] = sim_schedule_load_at(&c, t_s[i]);
+}

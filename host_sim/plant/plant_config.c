@@ -158,6 +158,8 @@ typedef struct {
     plant_config *cfg;
     int gauge[FIELD_COUNT * PLANT_MAX_BANDS]; /* value written as gauge: add ambient at the end */
     int band_seen[PLANT_MAX_BANDS];
+    unsigned band_keys[PLANT_MAX_BANDS]; /* bit i: fields[i] given for the band */
+    char edge_where[PLANT_PATH_MAX + 16]; /* file:line of the last band_lower/band_upper */
     char *err;
     size_t err_len;
     int failed;
@@ -379,6 +381,39 @@ static int handle_special(file_ctx *fc, const char *section, const char *name, c
     return -1; /* not special */
 }
 
+static size_t first_band_field(void)
+{
+    size_t i = 0;
+    while (strcmp(fields[i].section, "hysteresis") != 0)
+        i++;
+    return i;
+}
+
+/* What a file must give together: all four keys of a [hysteresis.N] it names,
+ * and a band whose upper edge is above its lower one. 0 or -1 with err. */
+static int check_given(const load_ctx *ctx, const char *path)
+{
+    const plant_config *c = ctx->cfg;
+    for (int b = 0; b < PLANT_MAX_BANDS; b++) {
+        if (!ctx->band_seen[b])
+            continue;
+        for (size_t i = first_band_field(); i < FIELD_COUNT && strcmp(fields[i].section, "hysteresis") == 0; i++)
+            if (!(ctx->band_keys[b] & (1u << (i - first_band_field())))) {
+                char list[256];
+                allowed_suffixes(fields[i].k, list, sizeof list);
+                snprintf(ctx->err, ctx->err_len, "%s: [hysteresis.%d] %s: missing (with a unit suffix: %s)", path,
+                         b + 1, fields[i].base, list);
+                return -1;
+            }
+    }
+    if (ctx->edge_where[0] && !(c->band_upper_m > c->band_lower_m)) {
+        snprintf(ctx->err, ctx->err_len, "%s: [controller] band_lower must be below band_upper (%.6g m, %.6g m)",
+                 ctx->edge_where, c->band_lower_m, c->band_upper_m);
+        return -1;
+    }
+    return 0;
+}
+
 static int handler(void *user, const char *section, const char *name, const char *value)
 {
     file_ctx *fc = user;
@@ -460,8 +495,12 @@ static int handler(void *user, const char *section, const char *name, const char
         else
             *(uint32_t *)dst = (uint32_t)v;
         ctx->gauge[slot] = gauge;
-        if (band >= 0)
+        if (band >= 0) {
             ctx->band_seen[band] = 1;
+            ctx->band_keys[band] |= 1u << (i - first_band_field());
+        }
+        if (strcmp(section, "controller") == 0 && strncmp(name, "band_", 5) == 0)
+            snprintf(ctx->edge_where, sizeof ctx->edge_where, "%s:%d", fc->path, fc->line);
         return 1;
     }
     if (base_matched >= 0) {
@@ -713,8 +752,127 @@ int plant_config_load(const char *path, plant_config *out, char *err, size_t err
             if (ctx->band_seen[b] && b + 1 > count)
                 count = b + 1;
         out->plant.band_count = count;
-        rc = plant_config_check(out, err, err_len);
+        rc = check_given(ctx, path);
+        if (rc == 0)
+            rc = plant_config_check(out, err, err_len);
     }
     free(ctx);
     return rc;
+}
+
+/* ---- the resolved config as JSON (leveler-sim --dump-config) ---- */
+
+/* The SI suffix of a unit kind: its entry with factor 1, not gauge; "" for plain numbers. */
+static const char *si_suffix(kind k)
+{
+    for (size_t i = 0; i < sizeof units / sizeof units[0]; i++)
+        if (units[i].k == k && units[i].factor == 1.0 && !units[i].gauge)
+            return units[i].suffix;
+    return "";
+}
+
+static void json_string(FILE *f, const char *s)
+{
+    fputc('"', f);
+    for (; *s; s++) {
+        unsigned char ch = (unsigned char)*s;
+        if (ch == '"' || ch == '\\')
+            fprintf(f, "\\%c", ch);
+        else if (ch < 0x20)
+            fprintf(f, "\\u%04x", ch);
+        else
+            fputc(ch, f);
+    }
+    fputc('"', f);
+}
+
+static void json_field(FILE *f, const field *fd, const char *base, const char *sep)
+{
+    const char *suffix = si_suffix(fd->k);
+    fprintf(f, "%s\"%s%s%s\": ", sep, fd->base, suffix[0] ? "_" : "", suffix);
+    const char *v = base + fd->offset;
+    if (fd->t == T_DOUBLE)
+        fprintf(f, "%.17g", *(const double *)v);
+    else if (fd->t == T_INT)
+        fprintf(f, "%d", *(const int *)v);
+    else
+        fprintf(f, "%u", (unsigned)*(const uint32_t *)v);
+}
+
+static void json_list(FILE *f, const char *key, const double *v, int n)
+{
+    fprintf(f, ", \"%s\": [", key);
+    for (int i = 0; i < n; i++)
+        fprintf(f, "%s%.17g", i ? ", " : "", v[i]);
+    fputc(']', f);
+}
+
+/* The hysteresis bands with the load range plant_band_for_load() gives each
+ * (covers_below_n null: every heavier load). */
+static void json_bands(FILE *f, const plant_params *p)
+{
+    fprintf(f, "  \"hysteresis\": [");
+    for (int b = 0; b < p->band_count; b++) {
+        const plant_hysteresis_band *band = &p->bands[b];
+        double from = 0.0, below = band->load_below_n;
+        int last = 1;
+        for (int o = 0; o < p->band_count; o++) {
+            double other = p->bands[o].load_below_n;
+            if (other < band->load_below_n && other > from)
+                from = other;
+            if (other > band->load_below_n)
+                last = 0;
+        }
+        fprintf(f, "%s\n    {", b ? "," : "");
+        int n = 0;
+        for (size_t i = 0; i < FIELD_COUNT; i++)
+            if (strcmp(fields[i].section, "hysteresis") == 0)
+                json_field(f, &fields[i], (const char *)band, n++ ? ", " : "");
+        fprintf(f, ", \"covers_from_n\": %.17g, \"covers_below_n\": ", from);
+        if (last)
+            fprintf(f, "null}");
+        else
+            fprintf(f, "%.17g}", below);
+    }
+    fprintf(f, "\n  ]");
+}
+
+int plant_config_write_json(const plant_config *c, FILE *f)
+{
+    static const char *const acc_types[] = {"none", "tube", "diaphragm"};
+    const plant_params *p = &c->plant;
+    fprintf(f, "{\n  \"config\": {\"name\": ");
+    json_string(f, c->name);
+    fprintf(f, ", \"path\": ");
+    json_string(f, c->path);
+    fprintf(f, "},\n");
+    const char *open = NULL;
+    for (size_t i = 0; i < FIELD_COUNT; i++) {
+        const field *fd = &fields[i];
+        if (strcmp(fd->section, "hysteresis") == 0)
+            continue;
+        int first = !open || strcmp(open, fd->section) != 0;
+        if (first) {
+            if (open)
+                fprintf(f, "},\n");
+            fprintf(f, "  \"%s\": {", fd->section);
+            open = fd->section;
+        }
+        json_field(f, fd, (const char *)c, first ? "" : ", ");
+        int last = i + 1 == FIELD_COUNT || strcmp(fields[i + 1].section, fd->section) != 0;
+        if (last && strcmp(fd->section, "accumulator") == 0) { /* the keys read by hand */
+            fprintf(f, ", \"type\": \"%s\"", acc_types[p->acc_type]);
+            json_list(f, "diaphragm_breaks_pa", p->diaphragm_break_pa, p->diaphragm_segments - 1);
+            json_list(f, "diaphragm_slopes_m3_per_pa", p->diaphragm_slope_m3_per_pa, p->diaphragm_segments);
+            json_list(f, "diaphragm_intercepts_m3", p->diaphragm_intercept_m3, p->diaphragm_segments);
+        }
+        if (last && strcmp(fd->section, "spring") == 0) {
+            json_list(f, "area_cc1_poly_in2", p->area_cc1_in2, p->area_cc1_terms);
+            json_list(f, "area_cc2_poly_in2_per_in", p->area_cc2_in2_per_in, p->area_cc2_terms);
+        }
+    }
+    fprintf(f, "},\n");
+    json_bands(f, p);
+    fprintf(f, "\n}\n");
+    return ferror(f) ? -1 : 0;
 }

@@ -3,6 +3,7 @@
  *
  *   leveler-sim --config FILE [--schedule FILE] [--algorithm 1|2] --log run.csv
  *               [--summary run.json] [--plot run.png] [--units thesis|si] [--end-s S]
+ *   leveler-sim --dump-config [--config FILE]
  *
  * Writes the run log (runlog.h format). With --summary/--plot it then runs
  *   $LEVELER_PYTHON -m leveler.report --log run.csv ... (PYTHONPATH=<source>/scripts)
@@ -40,7 +41,9 @@ static void usage(FILE *f)
             "  --summary FILE     event figures as JSON (runs python -m leveler.report)\n"
             "  --plot FILE        figure of the run (runs python -m leveler.report)\n"
             "  --units thesis|si  units of the printed comparison table (default thesis)\n"
-            "  --end-s S          simulate to S seconds (holds the last load past the schedule)\n");
+            "  --end-s S          simulate to S seconds (holds the last load past the schedule)\n"
+            "  --dump-config      print the resolved config (the built-in one without --config)\n"
+            "                     as JSON in SI units and exit (what scripts/leveler/config.py reads)\n");
 }
 
 static void progress(double t_s, double end_s, void *user)
@@ -48,6 +51,31 @@ static void progress(double t_s, double end_s, void *user)
     (void)user;
     if (end_s >= 600.0)
         fprintf(stderr, "leveler-sim: %.0f / %.0f s simulated\n", t_s, end_s);
+}
+
+/* --dump-config: 0, 2 on a config error. */
+static int dump_config(const char *config)
+{
+    static plant_config cfg;
+    char err[1024];
+    if (config && plant_config_load(config, &cfg, err, sizeof err) != 0) {
+        fprintf(stderr, "leveler-sim: %s\n", err);
+        return 2;
+    }
+    if (!config)
+        plant_config_defaults(&cfg);
+    return plant_config_write_json(&cfg, stdout) == 0 && fflush(stdout) == 0 ? 0 : 1;
+}
+
+/* This program's own path, so leveler.report asks the same leveler-sim for the config. */
+static void export_self(void)
+{
+    char self[4096];
+    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+    if (n > 0) {
+        self[n] = 0;
+        setenv("LEVELER_SIM", self, 0);
+    }
 }
 
 static int run_report(const char *log, const char *summary, const char *plot, const char *config, const char *units)
@@ -101,6 +129,7 @@ static int run_report(const char *log, const char *summary, const char *plot, co
     }
     if (pid == 0) {
         setenv("PYTHONPATH", scripts, 1);
+        export_self();
         execvp(py, (char *const *)argv);
         fprintf(stderr, "leveler-sim: cannot run %s: %s (set LEVELER_PYTHON)\n", py, strerror(errno));
         _exit(127);
@@ -121,13 +150,17 @@ int main(int argc, char **argv)
 {
     const char *config = NULL, *schedule = NULL, *log = NULL, *summary = NULL, *plot = NULL;
     const char *units = "thesis";
-    int algorithm = 0;
+    int algorithm = 0, dump = 0;
     double end_s = 0.0;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0) {
             usage(stdout);
             return 0;
+        }
+        if (strcmp(a, "--dump-config") == 0) {
+            dump = 1;
+            continue;
         }
         if (i + 1 >= argc) {
             fprintf(stderr, "leveler-sim: %s needs a value\n", a);
@@ -170,6 +203,8 @@ int main(int argc, char **argv)
             return 2;
         }
     }
+    if (dump)
+        return dump_config(config);
     if (!config || !log) {
         fprintf(stderr, "leveler-sim: --config and --log are required\n");
         usage(stderr);

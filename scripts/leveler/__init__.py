@@ -5,7 +5,7 @@ Modules
 runlog   read / write the run-log CSV (docs/log-format.md), with unit checks
 thesis   published numbers of the thesis (SI) and unit helpers
 events   event figures of a load step and a load removal (docs/events.md)
-config   the few simulator-config keys the analysis needs (band, hysteresis)
+config   the simulator config as its C loader resolves it (leveler-sim --dump-config)
 plot     the report figure (matplotlib, Agg)
 report   command line: python -m leveler.report --log run.csv ...
 

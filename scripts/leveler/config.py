@@ -1,34 +1,31 @@
-"""The few simulator-config keys the analysis needs (docs/config-format.md).
+"""The simulator's config as the C loader resolves it (docs/config-format.md).
 
-Reads an INI file with ``configparser`` (following ``[config] include``) and
-returns, in SI: the run name, the controller band, the ambient pressure, the
-base load and the hysteresis bands. Every other key is the simulator's
-business and is ignored here. Errors name the file, the line and the
-``[section] key``.
+There is one config loader, the simulator's (host_sim/plant/plant_config.c:
+units, ranges, includes, defaults). Python asks it, ``leveler-sim
+--dump-config [--config FILE]``, and reads the JSON it prints: every key in
+SI with its SI unit suffix, the hysteresis bands with the load range each
+covers. Errors are the loader's own ``file:line: [section] key = value:
+reason``.
+
+``leveler-sim`` is found in $LEVELER_SIM (set by leveler-sim itself for the
+report it runs, and by the tests), else in the project's build folders.
 """
 
 from __future__ import annotations
 
-import configparser
 import dataclasses
+import functools
+import glob
+import json
 import os
-import re
-from typing import Dict, List, Optional, Tuple
+import subprocess
+from typing import List, Optional
 
-from . import thesis
-
-# unit suffix -> (scale, offset) with SI = value * scale + offset
-_PSI = thesis.PA_PER_PSI
-LENGTH = {"m": (1.0, 0.0), "mm": (1e-3, 0.0), "in": (thesis.M_PER_IN, 0.0)}
-FORCE = {"n": (1.0, 0.0), "lbf": (thesis.N_PER_LBF, 0.0)}
-PRESSURE_ABS = {"pa": (1.0, 0.0), "kpa": (1e3, 0.0), "bar": (1e5, 0.0), "psia": (_PSI, 0.0)}
-PRESSURE_GAUGE = {"pag": (1.0, None), "psig": (_PSI, None)}     # None: + ambient
-PRESSURE_DIFF = {"pad": (1.0, 0.0), "psi": (_PSI, 0.0)}
-HYST_SLOPE = {"pa_per_m": (1.0, 0.0), "psi_per_in": (_PSI / thesis.M_PER_IN, 0.0)}
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 
 
 class ConfigError(ValueError):
-    """``str()`` reads ``file:line: [section] key: what is wrong``."""
+    """``str()`` reads ``file:line: [section] key ...: what is wrong`` (the C loader's words)."""
 
 
 @dataclasses.dataclass
@@ -37,6 +34,11 @@ class HysteresisBand:
     up_slope_pa_per_m: float
     up_intercept_gauge_pa: float
     down_offset_pa: float
+    covers_from_n: float                 # the loads this band is used for, as the plant picks it
+    covers_below_n: Optional[float]      # None: every heavier load
+
+    def covers(self, load_n):
+        return self.covers_from_n <= load_n and (self.covers_below_n is None or load_n < self.covers_below_n)
 
     def up_pa(self, height_m, ambient_pa):
         """UPlimit as absolute pressure at ``height_m``."""
@@ -49,171 +51,85 @@ class HysteresisBand:
 @dataclasses.dataclass
 class AnalysisConfig:
     name: str
-    band_low_m: float
-    band_high_m: float
+    band_lower_m: float
+    band_upper_m: float
     ambient_pa: float
-    base_load_n: Optional[float]
+    base_load_n: float
     hysteresis: List[HysteresisBand]
     path: Optional[str] = None
+    values: dict = dataclasses.field(default_factory=dict)   # the whole resolved config (JSON)
 
     def band_for_load(self, load_n) -> HysteresisBand:
-        """The band the program uses: the first (by load_below) whose
-        load_below exceeds the load, else the heaviest band."""
-        bands = sorted(self.hysteresis, key=lambda b: b.load_below_n)
-        for b in bands:
-            if load_n < b.load_below_n:
+        """The band the plant uses for this load (the load ranges come from the C plant)."""
+        for b in self.hysteresis:
+            if b.covers(load_n):
                 return b
-        return bands[-1]
+        raise ValueError(f"no hysteresis band covers {load_n} N")
 
     def hysteresis_lines(self, load_n):
         """(up, down): height_m -> absolute Pa for the current load."""
         b = self.band_for_load(load_n)
         return (lambda h: b.up_pa(h, self.ambient_pa), lambda h: b.down_pa(h, self.ambient_pa))
 
-
-def thesis_hysteresis() -> List[HysteresisBand]:
-    """The thesis program's four bands (psig lines, README)."""
-    rows = [(950, -3.43, 130.0, 11.0), (1050, -3.67, 139.33, 10.5),
-            (1150, -3.5, 141.5, 10.5), (1e9, -3.67, 149.33, 10.5)]
-    # The last band covers every heavier load; its limit is the largest.
-    return [HysteresisBand(thesis.lb_to_n(lb) if lb < 1e8 else 1e5,
-                           s * _PSI / thesis.M_PER_IN, c * _PSI, off * _PSI)
-            for lb, s, c, off in rows]
+    def value(self, section, key):
+        """A resolved value by section and SI key, e.g. ("solver", "substeps_per_tick")."""
+        return self.values[section][key]
 
 
-def default_config(name="") -> AnalysisConfig:
-    """Thesis band, ambient 14.7 psia and hysteresis lines, no config file."""
-    return AnalysisConfig(name, thesis.SCENARIO["band_low_m"], thesis.SCENARIO["band_high_m"],
-                          thesis.AMBIENT_PA, None, thesis_hysteresis())
+def find_sim():
+    env = os.environ.get("LEVELER_SIM")
+    if env:
+        if not os.access(env, os.X_OK):
+            raise ConfigError(f"LEVELER_SIM={env}: not an executable")
+        return env
+    cands = [c for b in ("sim", "bench", "test", "*")
+             for c in glob.glob(os.path.join(ROOT, "build", b, "host_sim", "sim", "leveler-sim"))]
+    cands = [c for c in cands if os.access(c, os.X_OK)]
+    if not cands:
+        raise ConfigError("leveler-sim not found (it reads the config for the analysis): "
+                          "run `make sim` or set LEVELER_SIM")
+    return max(cands, key=os.path.getmtime)
 
 
-# --- reading -------------------------------------------------------------------
+@functools.lru_cache(maxsize=64)
+def _resolved(path, mtime):
+    cmd = [find_sim(), "--dump-config"] + (["--config", path] if path else [])
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    if p.returncode != 0:
+        msg = p.stderr.strip()
+        raise ConfigError(msg[len("leveler-sim: "):] if msg.startswith("leveler-sim: ") else msg)
+    return json.loads(p.stdout)
 
-def _line_of(path, section, key):
-    """Line number of ``key`` in ``[section]`` of ``path`` (1-based) or None."""
+
+def resolved(path=None) -> dict:
+    """The resolved config as the C loader gives it (the built-in one for None)."""
+    if path is None:
+        return _resolved(None, None)
+    path = os.fspath(path)
     try:
-        with open(path, encoding="utf-8") as f:
-            current = None
-            for n, line in enumerate(f, 1):
-                s = line.strip()
-                m = re.match(r"^\[(.+)\]$", s)
-                if m:
-                    current = m.group(1).strip().lower()
-                elif current == section.lower() and re.match(
-                        rf"^{re.escape(key)}\s*[=:]", s, re.IGNORECASE):
-                    return n
-    except OSError:
-        return None
-    return None
-
-
-def _error(path, section, key, message):
-    line = _line_of(path, section, key) if key else None
-    where = f"{path}:{line}" if line else str(path)
-    what = f"[{section}] {key}" if key else f"[{section}]"
-    return ConfigError(f"{where}: {what}: {message}")
-
-
-def _load_chain(path, depth=0) -> List[Tuple[str, configparser.ConfigParser]]:
-    """The file and its includes, the including file last (it wins)."""
-    if depth > 4:
-        raise ConfigError(f"{path}: includes nested more than 4 deep")
-    cp = configparser.ConfigParser(interpolation=None, strict=True,
-                                   comment_prefixes=("#", ";"), inline_comment_prefixes=None)
-    try:
-        with open(path, encoding="utf-8") as f:
-            cp.read_file(f, source=path)
+        mtime = os.stat(path).st_mtime_ns
     except OSError as e:
-        raise ConfigError(f"{path}: cannot read: {e.strerror}") from None
-    except configparser.Error as e:
-        raise ConfigError(f"{path}: {e}".replace("\n", " ")) from None
-    chain = []
-    if cp.has_option("config", "include"):
-        inc = cp.get("config", "include").strip()
-        inc_path = os.path.join(os.path.dirname(os.path.abspath(path)), inc)
-        chain.extend(_load_chain(inc_path, depth + 1))
-    chain.append((path, cp))
-    return chain
+        raise ConfigError(f"{path}: cannot open: {e.strerror}") from None
+    return _resolved(path, mtime)
 
 
-def _lookup(chain, section, base, units):
-    """The last value of ``base_<unit>`` for any unit in ``units``, in SI, and
-    (file, key) it came from; (None, None) if absent. ``units`` values are
-    (scale, offset); offset None marks a gauge pressure, kept gauge here."""
-    found = None
-    for path, cp in chain:
-        if not cp.has_section(section):
-            continue
-        hits = [(u, cp.get(section, f"{base}_{u}")) for u in units
-                if cp.has_option(section, f"{base}_{u}")]
-        if len(hits) > 1:
-            keys = sorted((f"{base}_{u}" for u, _ in hits),
-                          key=lambda k: _line_of(path, section, k) or 0)
-            raise _error(path, section, keys[-1], f"given twice (also as {keys[0]})")
-        if hits:
-            u, text = hits[0]
-            try:
-                value = float(text)
-            except ValueError:
-                raise _error(path, section, f"{base}_{u}", f"'{text}' is not a number") from None
-            found = (u, value, path)
-    if found is None:
-        return None, None
-    u, value, path = found
-    scale, offset = units[u]
-    return value * scale + (offset or 0.0), (path, f"{base}_{u}")
-
-
-def raw_value(path, section, key) -> Optional[str]:
-    """The text of ``[section] key`` as the simulator sees it: the last one
-    along the file's include chain; None when no file gives it."""
-    value = None
-    for _, cp in _load_chain(os.fspath(path)):
-        if cp.has_option(section, key):
-            value = cp.get(section, key).strip()
-    return value
+def _analysis(doc, path) -> AnalysisConfig:
+    bands = [HysteresisBand(b["load_below_n"], b["up_slope_pa_per_m"], b["up_intercept_pag"],
+                            b["down_offset_pad"], b["covers_from_n"], b["covers_below_n"])
+             for b in doc["hysteresis"]]
+    return AnalysisConfig(doc["config"]["name"], doc["controller"]["band_lower_m"],
+                          doc["controller"]["band_upper_m"], doc["ambient"]["pressure_pa"],
+                          doc["scenario"]["base_load_n"], bands, path, doc)
 
 
 def load(path) -> AnalysisConfig:
-    """Reads the keys the analysis needs from a simulator config file."""
-    path = os.fspath(path)
-    chain = _load_chain(path)
-    name = None
-    for _, cp in chain:
-        if cp.has_option("config", "name"):
-            name = cp.get("config", "name").strip()
-    if not name:
-        name = os.path.splitext(os.path.basename(path))[0]
+    """A simulator config file, resolved by the C loader."""
+    return _analysis(resolved(path), os.fspath(path))
 
-    ambient, _ = _lookup(chain, "ambient", "pressure", PRESSURE_ABS)
-    ambient = thesis.AMBIENT_PA if ambient is None else ambient
 
-    lo, _ = _lookup(chain, "controller", "band_lower", LENGTH)
-    hi, where = _lookup(chain, "controller", "band_upper", LENGTH)
-    lo = thesis.SCENARIO["band_low_m"] if lo is None else lo
-    hi = thesis.SCENARIO["band_high_m"] if hi is None else hi
-    if not hi > lo:
-        file_, key = where if where else (path, "band_upper")
-        raise _error(file_, "controller", key, f"upper {hi:.6g} m is not above lower {lo:.6g} m")
-
-    base, _ = _lookup(chain, "scenario", "base_load", FORCE)
-
-    bands: Dict[int, HysteresisBand] = {}
-    sections = sorted({s for _, cp in chain for s in cp.sections() if s.startswith("hysteresis.")})
-    for sec in sections:
-        m = re.fullmatch(r"hysteresis\.([1-8])", sec)
-        if not m:
-            raise _error(path, sec, None, "hysteresis sections are [hysteresis.1] .. [hysteresis.8]")
-        values = {}
-        for base_key, units in (("load_below", FORCE), ("up_slope", HYST_SLOPE),
-                                ("up_intercept", {**PRESSURE_GAUGE, **PRESSURE_DIFF}),
-                                ("down_offset", PRESSURE_DIFF)):
-            v, _ = _lookup(chain, sec, base_key, units)
-            if v is None:
-                raise _error(path, sec, base_key, "missing (with a unit suffix, e.g. "
-                             f"{base_key}_{next(iter(units))})")
-            values[base_key] = v
-        bands[int(m.group(1))] = HysteresisBand(values["load_below"], values["up_slope"],
-                                                values["up_intercept"], values["down_offset"])
-    hyst = [bands[k] for k in sorted(bands)] if bands else thesis_hysteresis()
-    return AnalysisConfig(name, lo, hi, ambient, base, hyst, path)
+def default_config(name="") -> AnalysisConfig:
+    """The built-in config (the thesis 900 lb case) when there is no file."""
+    cfg = _analysis(resolved(None), None)
+    if name:
+        cfg = dataclasses.replace(cfg, name=name)
+    return cfg

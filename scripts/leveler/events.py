@@ -89,8 +89,8 @@ SUMMARY_KEYS = (
 @dataclasses.dataclass
 class EventOptions:
     """Tuning of the event extraction. Defaults suit 1..100 Hz logs."""
-    band_low_m: float = thesis.SCENARIO["band_low_m"]
-    band_high_m: float = thesis.SCENARIO["band_high_m"]
+    band_lower_m: float = thesis.SCENARIO["band_lower_m"]
+    band_upper_m: float = thesis.SCENARIO["band_upper_m"]
     step_min_n: float = 100.0        # smaller load changes are not events (200 lb = 890 N)
     smooth_s: float = 0.2            # moving-median window
     rest_tol_min_m: float = 0.25e-3  # about the thesis's 0.01 in resolution
@@ -305,7 +305,7 @@ def _excursion(t, h_raw, h_s, p2_raw, event, window_end, direction, tol, opts):
     y = sgn * seg                     # the extreme is the minimum of y
     k_ext = int(np.argmin(y))
     y_ext = float(y[k_ext])
-    edge = opts.band_low_m if direction < 0 else opts.band_high_m
+    edge = opts.band_lower_m if direction < 0 else opts.band_upper_m
     edge_y = sgn * edge
     ex = Excursion(event=event, direction=direction, t_extreme_s=float(t[lo + k_ext]),
                    extreme_m=float(seg[k_ext]), tolerance_m=tol)

@@ -59,7 +59,7 @@ def plot_run(log, out_png, analysis=None, cfg=None, units="thesis", title=None):
     cfg = cfg or config_mod.default_config(log.config)
     if analysis is None:
         analysis = events_mod.analyze(log, events_mod.EventOptions(
-            band_low_m=cfg.band_low_m, band_high_m=cfg.band_high_m))
+            band_lower_m=cfg.band_lower_m, band_upper_m=cfg.band_upper_m))
     hs, hlabel, pconv, plabel = _UNITS[units]
     t = log.t_s
     h = log.height_m * hs
@@ -72,8 +72,8 @@ def plot_run(log, out_png, analysis=None, cfg=None, units="thesis", title=None):
     ax_ph = fig.add_subplot(gs[:, 1])
 
     # --- height ---------------------------------------------------------------
-    band_lo, band_hi = cfg.band_low_m * hs, cfg.band_high_m * hs
-    ax_h.axhspan(band_lo, band_hi, color="#2ca02c", alpha=0.15, lw=0, label="band")
+    band_lower, band_upper = cfg.band_lower_m * hs, cfg.band_upper_m * hs
+    ax_h.axhspan(band_lower, band_upper, color="#2ca02c", alpha=0.15, lw=0, label="band")
     ax_h.plot(t, h, color="k", lw=1.0, label="height")
     for e in analysis.load_events:
         ax_h.axvline(e.t_s, color="0.5", ls=":", lw=1)
@@ -175,7 +175,7 @@ def plot_run(log, out_png, analysis=None, cfg=None, units="thesis", title=None):
     else:
         ax_ph.text(0.5, 0.5, "no spring pressure measured", transform=ax_ph.transAxes,
                    ha="center")
-    ax_ph.axhspan(band_lo, band_hi, color="#2ca02c", alpha=0.15, lw=0)
+    ax_ph.axhspan(band_lower, band_upper, color="#2ca02c", alpha=0.15, lw=0)
     ax_ph.set_xlabel("P2 spring " + plabel)
     ax_ph.set_ylabel(hlabel)
     ax_ph.grid(True, alpha=0.3)

@@ -101,11 +101,11 @@ def main(argv=None):
         print(f"leveler.report: error: {e}", file=sys.stderr)
         return 2
 
-    opts = events.EventOptions(band_low_m=cfg.band_low_m, band_high_m=cfg.band_high_m)
+    opts = events.EventOptions(band_lower_m=cfg.band_lower_m, band_upper_m=cfg.band_upper_m)
     analysis = events.analyze(log, opts)
     summary = analysis.summary()
 
-    base_load = cfg.base_load_n if cfg.base_load_n is not None else float(log.load_n[0])
+    base_load = cfg.base_load_n if args.config else float(log.load_n[0])
     case = args.compare or thesis.pick_case(log.config or cfg.name, log.source, base_load)
     published = thesis.CASES.get(case) if case else None
 

@@ -66,8 +66,8 @@ SCENARIO = {
     "removal_time_s": 35.0,
     "end_time_s": 55.0,
     "step_load_n": lb_to_n(200.0),
-    "band_low_m": in_to_m(15.6),
-    "band_high_m": in_to_m(15.8),
+    "band_lower_m": in_to_m(15.6),
+    "band_upper_m": in_to_m(15.8),
     "set_height_m": in_to_m(15.65),
 }
 
@@ -199,38 +199,3 @@ def pick_case(config_name=None, source=None, base_load_n=None):
         return None
     kind = "exp" if source == "rig" else "sim"
     return f"thesis-{base_lb}lb-{kind}"
-
-
-# --- hysteresis lines of the thesis -------------------------------------------
-# (slope psi/in, UPlimit intercept psia, DPlimit intercept psia), y in inches:
-# "Hysteresis Curve Linearization"; the program picks by load band.
-HYSTERESIS_PSIA = {
-    900: (-3.43, 144.7, 133.7),
-    1000: (-3.67, 154.03, 143.53),
-    1100: (-3.5, 156.2, 145.7),
-    1200: (-3.67, 164.03, 153.53),
-}
-
-
-def hysteresis_load_class(load_n):
-    """The table row the thesis program uses: <950, <1050, <1150 lb, else 1200."""
-    lb = n_to_lb(load_n)
-    if lb < 950.0:
-        return 900
-    if lb < 1050.0:
-        return 1000
-    if lb < 1150.0:
-        return 1100
-    return 1200
-
-
-def hysteresis_lines(load_n):
-    """(up, down) callables height_m -> absolute Pa for the thesis's lines."""
-    slope, up0, down0 = HYSTERESIS_PSIA[hysteresis_load_class(load_n)]
-
-    def up(height_m):
-        return psia_to_pa(slope * m_to_in(height_m) + up0)
-
-    def down(height_m):
-        return psia_to_pa(slope * m_to_in(height_m) + down0)
-    return up, down

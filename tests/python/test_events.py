@@ -110,7 +110,7 @@ def test_rig_without_spring_pressure():
 def test_band_from_options_moves_the_return_time():
     log = synth.make_log()
     lower = thesis.in_to_m(15.0)
-    s = events.summarize(log, events.EventOptions(band_low_m=lower))
+    s = events.summarize(log, events.EventOptions(band_lower_m=lower))
     want = 21.4 + (15.0 - 14.53) / (15.70 - 14.53) * 8.6 - 5.0
     assert s["time_return_after_step_s"] == pytest.approx(want, abs=1e-3)
 

@@ -1,4 +1,4 @@
-"""leveler.thesis numbers and units, leveler.config keys."""
+"""leveler.thesis numbers and units, leveler.config keys (the C loader's, through leveler-sim)."""
 
 import pytest
 
@@ -35,10 +35,21 @@ def test_pick_case():
     assert thesis.pick_case("bench", "sim", thesis.lb_to_n(700)) is None
 
 
+# The text's "Hysteresis Curve Linearization" (slope psi/in, UPlimit and DPlimit
+# intercepts psia, y in inches), per load class: the expectation for the
+# built-in config, which holds Appendix B's psig lines.
+TEXT_LINES_PSIA = {
+    900: (-3.43, 144.7, 133.7),
+    1000: (-3.67, 154.03, 143.53),
+    1100: (-3.5, 156.2, 145.7),
+    1200: (-3.67, 164.03, 153.53),
+}
+
+
 def test_program_psig_lines_match_the_texts_psia_lines():
     # Appendix B's lines are psig, the text's psia; with 14.7 psia they agree.
     cfg = config.default_config()
-    for lb, (slope, up0, down0) in thesis.HYSTERESIS_PSIA.items():
+    for lb, (slope, up0, down0) in TEXT_LINES_PSIA.items():
         up, down = cfg.hysteresis_lines(thesis.lb_to_n(lb))
         for y_in in (14.0, 15.65, 17.5):
             h = thesis.in_to_m(y_in)
@@ -57,20 +68,25 @@ def test_config_keys_units_and_include(tmp_path):
         "[ambient]\npressure_kpa = 101.325\n")
     cfg = config.load(tmp_path / "run.ini")
     assert cfg.name == "thesis-900lb"
-    assert cfg.band_low_m == pytest.approx(0.390)            # overridden in another unit
-    assert cfg.band_high_m == pytest.approx(15.8 * 0.0254)
+    assert cfg.band_lower_m == pytest.approx(0.390)            # overridden in another unit
+    assert cfg.band_upper_m == pytest.approx(15.8 * 0.0254)
     assert cfg.base_load_n == pytest.approx(thesis.lb_to_n(900))
-    up, down = cfg.hysteresis_lines(thesis.lb_to_n(1100))     # heavier: last band
+    assert cfg.ambient_pa == pytest.approx(101325.0)
     h = thesis.in_to_m(15.0)
+    up, down = cfg.hysteresis_lines(thesis.lb_to_n(900))      # the file's band 1, psig on the file's ambient
     assert up(h) == pytest.approx(thesis.psia_to_pa(-3.43 * 15 + 130.0) + 101325 - thesis.psia_to_pa(0)
                                   , rel=1e-9)
     assert up(h) - down(h) == pytest.approx(11.0 * thesis.PA_PER_PSI)
+    up, down = cfg.hysteresis_lines(thesis.lb_to_n(1100))     # the built-in band 3, as the simulator runs it
+    assert up(h) == pytest.approx(thesis.psia_to_pa(-3.5 * 15 + 141.5) + 101325 - thesis.psia_to_pa(0),
+                                  rel=1e-9)
+    assert up(h) - down(h) == pytest.approx(10.5 * thesis.PA_PER_PSI)
 
 
 @pytest.mark.parametrize("text, words, line", [
     ("[controller]\nband_lower_in = 15.6\nband_lower_mm = 390\n", "given twice", 3),
-    ("[controller]\nband_lower_in = abc\n", "'abc' is not a number", 2),
-    ("[controller]\nband_lower_in = 15.9\nband_upper_in = 15.8\n", "not above lower", 3),
+    ("[controller]\nband_lower_in = abc\n", "band_lower_in = abc: not a number", 2),
+    ("[controller]\nband_lower_in = 15.9\nband_upper_in = 15.8\n", "band_lower must be below band_upper", 3),
     ("[hysteresis.1]\nload_below_lbf = 950\nup_slope_psi_per_in = -3.43\n"
      "up_intercept_psig = 130\n", "[hysteresis.1] down_offset: missing", None),
 ])

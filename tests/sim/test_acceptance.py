@@ -88,9 +88,8 @@ def _limit(key):
 
 
 def _substeps(path):
-    """[solver] substeps_per_tick of a config, following its includes (default 2)."""
-    value = config.raw_value(path, "solver", "substeps_per_tick")
-    return 2 if value is None else int(value)
+    """[solver] substeps_per_tick of a config as the simulator resolves it."""
+    return config.load(path).value("solver", "substeps_per_tick")
 
 
 @pytest.mark.parametrize("name", ["thesis-900lb", "thesis-1000lb", "thesis-900lb-tube", "thesis-900lb-diaphragm",

@@ -20,6 +20,7 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #define PLANT_MAX_BANDS 8
 #define PLANT_MAX_POLY 6
@@ -147,6 +148,12 @@ void plant_config_defaults(plant_config *out);
 /* Defaults, then the file (docs/config-format.md). 0 on success; else -1 and
  * err = "file:line: [section] key = value: reason (allowed range ...)". */
 int plant_config_load(const char *path, plant_config *out, char *err, size_t err_len);
+
+/* The resolved config as JSON, SI, keys named like the INI's with the SI
+ * unit suffix (band_lower_m, pressure_pa, ...), hysteresis bands with the load
+ * range each covers (plant_band_for_load). The one source Python reads
+ * (leveler-sim --dump-config; scripts/leveler/config.py). 0, or -1 on a write error. */
+int plant_config_write_json(const plant_config *c, FILE *f);
 
 /* Consistency checks of a whole config (also run by the loader). */
 int plant_config_check(const plant_config *cfg, char *err, size_t err_len);

@@ -22,16 +22,19 @@ import time
 
 import numpy as np
 
+from leveler import thesis
+
+from . import cplant
 from . import effects as fx
 from . import runs
 from .model import make_simulator
 
-LB = 4.4482216152605
+LB = thesis.N_PER_LBF
 CONFIG = "thesis-900lb"
 CASES = fx.NAMES + ["none"]
 NOISE_HEIGHT_M = 0.08e-3     # LVDT: about one 12-bit count of a 0.25 m span
 NOISE_PRESSURE_PA = 300.0    # transducer: about one count of a 1.38 MPa span
-IN3 = 0.0254 ** 3
+IN3 = thesis.M_PER_IN ** 3
 
 
 def truth_params(effect, rng):
@@ -76,7 +79,8 @@ def generate_case(sim, effect, seed, folder):
     params = truth_params(effect, rng)
     for name, t_on, t_off, end, loaded in schedules(rng):
         t = np.round(np.arange(0.0, end + 1e-9, 0.01), 2)
-        load = np.where((t >= t_on) & (t < t_off), loaded, 900.0 * LB)
+        load = cplant.scenario_loads(t, {"base_load_n": 900.0 * LB, "step_load_n": loaded - 900.0 * LB,
+                                         "step_on_s": t_on, "step_off_s": t_off, "end_s": end})
         tr = sim.generate(CONFIG, t, load, effect, params, seed)
         sig = dict(tr.signals)
         sig["height_m"] = sig["height_m"] + rng.normal(0.0, NOISE_HEIGHT_M, len(t))

@@ -5,6 +5,7 @@ host_sim/diagnose/CMakeLists.txt. It is looked up in $LEVELER_DIAG_LIB, then in
 the project's build folders (build/sim, build/bench, build/test).
 """
 import ctypes
+import functools
 import glob
 import os
 
@@ -21,6 +22,7 @@ MAX_PARAMS = 8
 TRUTH = 100
 SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
 COMMANDS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
+SCENARIO_KEYS = ("base_load_n", "step_load_n", "step_on_s", "step_off_s", "end_s")
 
 
 def find_library():
@@ -37,6 +39,24 @@ def find_library():
         raise DiagnoseInputError("libleveler_diag.so not found: build it with "
                                  "`cmake --build build/sim --target leveler_diag` or set LEVELER_DIAG_LIB")
     return max(cands, key=os.path.getmtime)
+
+
+@functools.lru_cache(maxsize=None)
+def _library(path):
+    return ctypes.CDLL(path)
+
+
+def scenario_loads(t_s, scenario):
+    """The load over each tick from t_s[i] of a scenario (dict of the config's [scenario]
+    keys base_load_n, step_load_n, step_on_s, step_off_s, end_s), by the simulator's rule."""
+    f = _library(find_library()).diag_scenario_loads
+    f.restype = None
+    f.argtypes = [ctypes.c_double] * 5 + [ctypes.c_int, ctypes.POINTER(ctypes.c_double),
+                                          ctypes.POINTER(ctypes.c_double)]
+    t = np.ascontiguousarray(t_s, dtype=np.float64)
+    out = np.empty(len(t))
+    f(*(float(scenario[k]) for k in SCENARIO_KEYS), len(t), _dptr(t), _dptr(out))
+    return out
 
 
 def config_path(name):
@@ -75,7 +95,7 @@ def initial_state(run):
 
 class CPlant(Simulator):
     def __init__(self, lib_path=None):
-        self.lib = ctypes.CDLL(lib_path or find_library())
+        self.lib = _library(lib_path or find_library())
         if self.lib.diag_abi_version() != ABI:
             raise DiagnoseInputError("libleveler_diag.so has another ABI version; rebuild it")
         f = self.lib.diag_simulate

@@ -10,8 +10,9 @@ The file is JSON:
               {"name": "thesis-1000lb-exp", "config": "thesis-1000lb", "role": "holdout", ...}]}
 
 Feature keys are leveler.events.SUMMARY_KEYS (SI; null = not published).
-"schedule" is optional (default: the thesis scenario at the config's base
-load) and "config" defaults to --config. Each run is simulated closed loop
+"schedule" is optional (default: the config's [scenario], as the C loader
+resolves it) and "config" defaults to --config; the load over each 10 ms tick
+follows the simulator's own scenario rule (cplant.scenario_loads). Each run is simulated closed loop
 with the firmware, its event figures extracted as for a trace, and the
 residual is the difference to the published figures in units of the
 figures' published resolution (FEATURE_SCALE).
@@ -22,17 +23,17 @@ import os
 
 import numpy as np
 
-from leveler import events
+from leveler import config as config_mod
+from leveler import events, thesis
 
-from . import gap
+from . import cplant, gap
 from .errors import DiagnoseInputError
 
 # One unit of error per figure: the resolution the thesis quotes them in.
-FEATURE_SCALE = {"length": 0.05 * 0.0254, "pressure": 6894.757293168361, "time": 1.0}
+FEATURE_SCALE = {"length": 0.05 * thesis.M_PER_IN, "pressure": thesis.PA_PER_PSI, "time": 1.0}
 KIND = {k: ("length" if k.endswith("_m") else "pressure" if k.endswith("_pa") else "time")
         for k in events.SUMMARY_KEYS}
 MISSING_PENALTY = 5.0   # a figure the simulation does not produce at all (in scale units)
-LB = 4.4482216152605
 
 
 class FeatureRun:
@@ -44,8 +45,7 @@ class FeatureRun:
         self.features = features
         end = schedule["end_s"]
         self.t_s = np.round(np.arange(0.0, end + 1e-9, 0.01), 2)
-        on = (self.t_s >= schedule["step_on_s"]) & (self.t_s < schedule["step_off_s"])
-        self.load_n = np.where(on, schedule["base_load_n"] + schedule["step_load_n"], schedule["base_load_n"])
+        self.load_n = cplant.scenario_loads(self.t_s, schedule)
         nan = np.full(len(self.t_s), np.nan)
         self.signals = {s: nan for s in ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")}
         self.commands = {}
@@ -55,7 +55,7 @@ class FeatureRun:
         return False
 
     def figures(self, trace):
-        return gap.event_figures(trace.t_s, trace.signals, self.load_n)
+        return gap.event_figures(trace.t_s, trace.signals, self.load_n, gap.band_of(self.config_override))
 
     def residual_vector(self, trace):
         sim = self.figures(trace)
@@ -66,11 +66,14 @@ class FeatureRun:
         return np.array(r) / math.sqrt(max(len(r), 1))
 
 
-def _base_load(config):
-    for lb in (1000, 900, 1100, 1200):
-        if f"{lb}lb" in config:
-            return lb * LB
-    return 900.0 * LB
+def _scenario(config):
+    """The [scenario] of a plant config by name, as the C loader resolves it."""
+    path = cplant.config_path(config)
+    try:
+        values = config_mod.load(path).values["scenario"]
+    except config_mod.ConfigError as e:
+        raise DiagnoseInputError(str(e)) from None
+    return {k: float(values[k]) for k in cplant.SCENARIO_KEYS}
 
 
 def load_many(paths, default_config):
@@ -128,8 +131,7 @@ def load(path, default_config, default_role="calibration", check=True):
         if not clean:
             raise DiagnoseInputError(f"{where}: no published figure")
         config = r.get("config") or default_config
-        sched = {"base_load_n": _base_load(config), "step_load_n": 200.0 * LB,
-                 "step_on_s": 5.0, "step_off_s": 35.0, "end_s": 55.0}
+        sched = _scenario(config)
         for k, v in (r.get("schedule") or {}).items():
             if k not in sched:
                 raise DiagnoseInputError(f"{where}: schedule.{k}: unknown key (known: {', '.join(sched)})")
@@ -147,7 +149,6 @@ def load(path, default_config, default_role="calibration", check=True):
 def thesis_experiment_file(path):
     """Writes the thesis experiment table (README, leveler.thesis) as a features file:
     900 lb for calibration, 1000 lb held out."""
-    from leveler import thesis
     runs = []
     for case, config, role in (("thesis-900lb-exp", "thesis-900lb", "calibration"),
                                ("thesis-1000lb-exp", "thesis-1000lb", "holdout")):

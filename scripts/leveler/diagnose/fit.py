@@ -55,8 +55,11 @@ class Problem:
 
     def simulate(self, run, effect, params):
         self.nsim += 1
-        config = getattr(run, "config_override", None) or self.config
-        return self.sim.simulate(config, run, effect, params, choose_mode(run, self.mode))
+        return self.sim.simulate(self.config_of(run), run, effect, params, choose_mode(run, self.mode))
+
+    def config_of(self, run):
+        """The plant config a run is simulated with: its own, else the problem's."""
+        return getattr(run, "config_override", None) or self.config
 
     def residual_vector(self, effect, params):
         parts = []

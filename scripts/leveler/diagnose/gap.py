@@ -4,6 +4,9 @@ Residual = simulated - real, on the real run's time base. Signals are
 weighted by fixed physical scales (SCALES) so that one number, the
 normalised RMS, compares height and pressures.
 """
+import functools
+import os
+
 import numpy as np
 
 from . import phases as ph
@@ -103,14 +106,27 @@ def rank_places(tables):
     return out
 
 
-def event_figures(t_s, signals, load_n):
-    """Thesis event figures (leveler.events: flat snake_case SI keys), undefined ones left out."""
+@functools.lru_cache(maxsize=16)
+def band_of(config):
+    """(band_lower_m, band_upper_m) of a plant config by name, as the C loader
+    resolves it; the built-in config's for a name with no file (stand-in simulators)."""
+    from leveler import config as config_mod
+
+    from .cplant import config_path
+    path = config_path(config)
+    cfg = config_mod.load(path) if os.path.isfile(path) else config_mod.default_config()
+    return cfg.band_lower_m, cfg.band_upper_m
+
+
+def event_figures(t_s, signals, load_n, band):
+    """Thesis event figures (leveler.events: flat snake_case SI keys) for the
+    controller band (lower, upper) in m; undefined ones left out."""
     from types import SimpleNamespace
 
     from leveler import events
     log = SimpleNamespace(t_s=np.asarray(t_s), height_m=np.asarray(signals["height_m"]),
                           p_spring_pa=np.asarray(signals["p_spring_pa"]), load_n=np.asarray(load_n))
-    out = events.summarize(log)
+    out = events.summarize(log, events.EventOptions(band_lower_m=band[0], band_upper_m=band[1]))
     return {k: float(v) for k, v in out.items() if v is not None and np.isfinite(v)}
 
 

@@ -28,8 +28,9 @@ def where_table(problem, runs):
         rows = gap.phase_table(run, tr, labels)
         tables.append(rows)
         traces.append(tr)
-        ev_real = gap.event_figures(run.t_s, run.signals, run.load_n)
-        ev_sim = gap.event_figures(tr.t_s, tr.signals, run.load_n)
+        band = gap.band_of(problem.config_of(run))
+        ev_real = gap.event_figures(run.t_s, run.signals, run.load_n, band)
+        ev_sim = gap.event_figures(tr.t_s, tr.signals, run.load_n, band)
         per_run.append({"run": run.name, "mode": fit.choose_mode(run, problem.mode),
                         "phases": ph.spans(run.t_s, labels), "table": rows,
                         "events_real": ev_real, "events_nominal": ev_sim,
@@ -37,7 +38,7 @@ def where_table(problem, runs):
     return {"ranked": gap.rank_places(tables), "runs": per_run}, traces
 
 
-def before_after(runs, nominal, augmented):
+def before_after(problem, runs, nominal, augmented):
     """Held-out gaps overall and per phase, nominal vs augmented, and the shrink."""
     labels = [_labels(r) for r in runs]
     out = {"overall": {"before": gap.gap_over_runs(runs, nominal),
@@ -53,10 +54,11 @@ def before_after(runs, nominal, augmented):
     out["per_phase"] = per_phase
     ev = []
     for r, n, a in zip(runs, nominal, augmented):
-        e_real = gap.event_figures(r.t_s, r.signals, r.load_n)
+        band = gap.band_of(problem.config_of(r))
+        e_real = gap.event_figures(r.t_s, r.signals, r.load_n, band)
         ev.append({"run": r.name, "real": e_real,
-                   "nominal": gap.event_figures(n.t_s, n.signals, r.load_n),
-                   "augmented": gap.event_figures(a.t_s, a.signals, r.load_n)})
+                   "nominal": gap.event_figures(n.t_s, n.signals, r.load_n, band),
+                   "augmented": gap.event_figures(a.t_s, a.signals, r.load_n, band)})
     out["events"] = ev
     return out
 
@@ -243,7 +245,7 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
     if features:
         ba = feature_before_after(hold_problem, holdout, nominal_hold, aug_hold)
     else:
-        ba = before_after(holdout, nominal_hold, aug_hold)
+        ba = before_after(hold_problem, holdout, nominal_hold, aug_hold)
     result = {
         "config": config,
         "mode": mode,

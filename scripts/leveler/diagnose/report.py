@@ -9,8 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-M_PER_IN = 0.0254
-PA_PER_PSI = 6894.757
+from leveler.thesis import M_PER_IN, PA_PER_PSI  # noqa: E402
 
 
 def _json_default(o):
