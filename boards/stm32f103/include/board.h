@@ -36,9 +36,11 @@ void board_clock_init(void);
 const board_clocks *board_clock(void);
 /* True once after the clock security system moved us to HSI at run time. */
 bool board_take_clock_fault_event(void);
-void Default_Handler(void);
+/* NMI: true (and running from HSI) when the clock security system fired. */
+bool board_clock_recover_after_css(void);
+void Default_Handler(void); /* startup.c */
 
-void board_systick_init(void);
+void board_systick_init(void); /* hal_stm32f103.c: the 1 ms time base */
 void board_cycle_counter_init(void);
 uint32_t board_cycles(void);
 void board_watchdog_start(void);

@@ -1,11 +1,13 @@
 /*
- * Clocks, SysTick, DWT cycle counter and the independent watchdog.
+ * Clocks, DWT cycle counter and the independent watchdog (the 1 ms time
+ * base, SysTick, is the HAL's: hal_stm32f103.c).
  */
 #include "board.h"
 
 #include "stm32f103_regs.h"
 
 static board_clocks s_clocks;
+static volatile bool s_clock_fault_event;
 static bool s_reset_by_watchdog;
 
 /* Called from Reset_Handler before .data/.bss exist: registers only.
@@ -101,22 +103,17 @@ void board_clock_init(void)
     clock_use_hsi();
 }
 
-static volatile bool s_clock_fault_event;
-
 /* CSS: HSE failed at run time. The hardware already runs us on the 8 MHz HSI
- * with HSE and PLL off; bring the PLL back up from HSI and re-time the 1 ms
- * SysTick and the USART divider. */
-void NMI_Handler(void)
+ * with HSE and PLL off; bring the PLL back up from HSI. The NMI handler (with
+ * the time base, in hal_stm32f103.c) then re-times SysTick and the USART. */
+bool board_clock_recover_after_css(void)
 {
-    if (RCC->CIR & RCC_CIR_CSSF) {
-        RCC->CIR = RCC_CIR_CSSC;
-        clock_use_hsi();
-        board_systick_init();
-        board_serial_reclock();
-        s_clock_fault_event = true;
-        return;
-    }
-    Default_Handler();
+    if (!(RCC->CIR & RCC_CIR_CSSF))
+        return false;
+    RCC->CIR = RCC_CIR_CSSC;
+    clock_use_hsi();
+    s_clock_fault_event = true;
+    return true;
 }
 
 bool board_take_clock_fault_event(void)
@@ -129,21 +126,6 @@ bool board_take_clock_fault_event(void)
 const board_clocks *board_clock(void) { return &s_clocks; }
 
 bool board_reset_was_watchdog(void) { return s_reset_by_watchdog; }
-
-/* ---- 1 ms SysTick: hal_now_ms ---- */
-static volatile uint32_t s_now_ms;
-
-void SysTick_Handler(void) { s_now_ms++; }
-
-uint32_t hal_now_ms(void) { return s_now_ms; } /* aligned 32-bit load: atomic */
-
-void board_systick_init(void)
-{
-    /* 24-bit reload: 72e6/1000 - 1 = 71999 fits. */
-    SYSTICK->LOAD = s_clocks.sysclk_hz / 1000u - 1u;
-    SYSTICK->VAL = 0;
-    SYSTICK->CTRL = SYSTICK_CTRL_CLKSOURCE_CPU | SYSTICK_CTRL_TICKINT | SYSTICK_CTRL_ENABLE;
-}
 
 /* ---- DWT cycle counter: cost of one control tick ---- */
 void board_cycle_counter_init(void)

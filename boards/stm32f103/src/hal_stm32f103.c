@@ -229,3 +229,29 @@ void board_hal_init(void)
     adc_init();
     usart_init();
 }
+
+/* ---- the time base: 1 ms SysTick behind hal_now_ms, one owner ---- */
+static volatile uint32_t s_now_ms;
+
+void SysTick_Handler(void) { s_now_ms++; }
+
+uint32_t hal_now_ms(void) { return s_now_ms; } /* aligned 32-bit load: atomic */
+
+void board_systick_init(void)
+{
+    /* 24-bit reload: 72e6/1000 - 1 = 71999 fits. */
+    SYSTICK->LOAD = board_clock()->sysclk_hz / 1000u - 1u;
+    SYSTICK->VAL = 0;
+    SYSTICK->CTRL = SYSTICK_CTRL_CLKSOURCE_CPU | SYSTICK_CTRL_TICKINT | SYSTICK_CTRL_ENABLE;
+}
+
+/* Clock security: after the switch to HSI, re-time what depends on the clock. */
+void NMI_Handler(void)
+{
+    if (board_clock_recover_after_css()) {
+        board_systick_init();
+        board_serial_reclock();
+        return;
+    }
+    Default_Handler();
+}
