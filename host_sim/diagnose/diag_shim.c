@@ -13,6 +13,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "diag.h"
 #include "effects.h"
 #include "plant.h"
 #include "simloop.h"
@@ -85,9 +86,9 @@ static int check_time_base(int n, const double *t_s, bool closed, char *err, int
  * Simulate one run.
  *   config_path      plant config (INI)
  *   n, t_s, load_n   the run's time base and load schedule (load for the interval from t_s[i])
- *   commands         n x 4 (compressor, solenoid, vent, acc_valve) to replay, or NULL for the
+ *   commands         n x 4 (compressor, spring_valve, vent_valve, acc_valve) to replay, or NULL for the
  *                    firmware in the loop (then t_s must be the 10 ms tick grid from 0)
- *   fx_kind, fx_params  effect (effects.h), PLANT_FX_MAX_PARAMS doubles
+ *   fx_kind, fx_params  effect id (effects.json; 0 = none), PLANT_FX_MAX_PARAMS doubles
  *   init             height m, P2, P1 Pa at t_s[0]; NaN = the config's. Given (even all
  *                    NaN), the platform starts at rest and, closed loop, the firmware
  *                    decides from the first tick; NULL = the config's initial state
@@ -99,6 +100,18 @@ static int check_time_base(int n, const double *t_s, bool closed, char *err, int
 int diag_simulate(const char *config_path, int n, const double *t_s, const double *load_n,
                   const int32_t *commands, int fx_kind, const double *fx_params, const double *init,
                   double *out, int32_t *cmd_out, char *err, int err_len)
+{
+    const plant_fx_model *model = plant_fx_find(plant_fx_catalogue, plant_fx_catalogue_count, fx_kind);
+    if (fx_kind != 0 && !model) {
+        snprintf(err, (size_t)err_len, "effect %d: unknown (known: effects.json)", fx_kind);
+        return -1;
+    }
+    return diag_run(config_path, n, t_s, load_n, commands, model, fx_params, init, out, cmd_out, err, err_len);
+}
+
+int diag_run(const char *config_path, int n, const double *t_s, const double *load_n, const int32_t *commands,
+             const plant_fx_model *model, const double *fx_params, const double *init, double *out,
+             int32_t *cmd_out, char *err, int err_len)
 {
     static plant_config cfg;
     static plant_fx f;
@@ -112,13 +125,8 @@ int diag_simulate(const char *config_path, int n, const double *t_s, const doubl
     if (check_time_base(n, t_s, closed, err, err_len) != 0)
         return -1;
     plant_params p = initial_params(&cfg, init);
-    plant_fx_spec spec;
-    memset(&spec, 0, sizeof spec);
-    spec.kind = fx_kind;
-    if (fx_params)
-        memcpy(spec.p, fx_params, sizeof spec.p);
-    if (plant_fx_init(&f, &p, &spec) != 0) {
-        snprintf(err, (size_t)err_len, "effect %d: unknown kind or parameter out of range", fx_kind);
+    if (plant_fx_init(&f, &p, model, fx_params) != 0) {
+        snprintf(err, (size_t)err_len, "effect %s: a parameter is outside its range", model->name);
         return -1;
     }
     if (closed && sim_firmware_start(&cfg, cfg.algorithm, err, (size_t)err_len) != 0)

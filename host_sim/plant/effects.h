@@ -1,61 +1,68 @@
 /*
- * Candidate unmodelled effects and their "truth" variants, as an optional
- * extension of the plant (plant.h). Used by the sim-to-real diagnosis
- * (docs/diagnosis.md, scripts/leveler/diagnose/) through ctypes.
+ * Unmodelled effects as an optional extension of the plant (plant.h), for the
+ * sim-to-real diagnosis (docs/diagnosis.md, scripts/leveler/diagnose/).
  *
- * A plant_fx is a plant plus a few extra states and per-tick memories. With
- * kind PLANT_FX_NONE (or every parameter at its "off" value) it reproduces
- * the nominal plant step for step: the extension only ADDS corrections to
- * plant_derivatives()'s result, using the flows it reports.
+ * A plant_fx is a plant plus a few extra states and per-tick memories, driven
+ * by one effect model. Without a model (or with every parameter at its
+ * nominal value) it reproduces the nominal plant step for step: a model only
+ * ADDS corrections to plant_derivatives()'s result, using the flows it
+ * reports, and steps through the plant's one RK4 step (plant_rk4_step).
  *
- * Candidates (kinds 1..7) are what the diagnosis fits. Truth variants
- * (kinds 101..107) generate the blind test's "real" logs; each has a
- * DIFFERENT functional form from its candidate, so a fit is never exact:
- *   thermal    candidate: one gas-to-wall time constant, wall at ambient
- *              truth:     gas-wall and wall-ambient time constants (wall temperature state)
- *   area       candidate: A_nom(y) (1 + a0 + a1 (y - y0) + a2 (y - y0)^2)
- *              truth:     A_nom(y) times a piecewise-linear table over 5 heights
- *   friction   candidate: Coulomb + Stribeck, stick below a velocity threshold
- *              truth:     LuGre (bristle state z)
- *   valve      candidate: pure opening/closing delays, ISO 6358 flow (b, C_out)
- *              truth:     first-order opening fractions, Cd falling with pressure ratio
- *   line       candidate: transport delay of the compressor flow, tube dead volume at the junction
- *              truth:     a lumped tube volume with a linear (laminar) conductance
- *   leak       candidate: orifice (eq. 8/9) spring -> ambient
- *              truth:     laminar capillary leak, m = K (P2^2 - Pa^2)
- *   sensor     candidate: first-order lags, offsets
- *              truth:     two cascaded lags on pressure, gain error, offsets
- * Parameter order per kind: see the table in effects.c (and effects.py).
+ * The candidate effects the diagnosis fits are catalogued once, in
+ * effects.json (names, ids, parameters, ranges): the table
+ * plant_fx_catalogue is generated from it, their models are in
+ * effects_candidates.c, one set of functions per effect. The blind test's
+ * truth variants are NOT part of the product: they live in host_sim/blindtest/
+ * and plug in through the same plant_fx_model.
  */
 #ifndef LEVELER_PLANT_EFFECTS_H
 #define LEVELER_PLANT_EFFECTS_H
 
 #include "plant.h"
 
-typedef enum {
-    PLANT_FX_NONE = 0,
-    PLANT_FX_THERMAL = 1,
-    PLANT_FX_AREA = 2,
-    PLANT_FX_FRICTION = 3,
-    PLANT_FX_VALVE = 4,
-    PLANT_FX_LINE = 5,
-    PLANT_FX_LEAK = 6,
-    PLANT_FX_SENSOR = 7,
-    PLANT_FX_TRUTH = 100 /* + one of the above: the truth-generator variant */
-} plant_fx_kind;
-
 #define PLANT_FX_MAX_PARAMS 8
-#define PLANT_FX_NX 6           /* extra ODE states */
+#define PLANT_FX_NX 6            /* extra ODE states */
 #define PLANT_FX_DELAY_TICKS 128 /* transport-delay memory, ticks */
 
-typedef struct {
-    int kind;                          /* plant_fx_kind */
-    double p[PLANT_FX_MAX_PARAMS];     /* meaning per kind: effects.c */
-} plant_fx_spec;
+/* Extra state slots (a model uses the ones it needs). */
+enum { PLANT_FX_XE_T2 = 0, PLANT_FX_XE_T1 = 1, PLANT_FX_XE_TW = 2, PLANT_FX_XE_Z = 3, PLANT_FX_XE_AUX = 4 };
 
+typedef struct plant_fx plant_fx;
+
+/* What an effect does, as functions; any may be NULL (nothing to do). */
 typedef struct {
+    void (*init)(plant_fx *f);
+    /* commanded -> effective inputs, at the plant's current time */
+    void (*inputs)(plant_fx *f, plant_inputs *effective);
+    /* corrections to plant_derivatives()'s dx (fl: its flows) at state x (plant + extra) */
+    void (*rhs)(const plant_fx *f, const double *x, double *dx, const plant_flows *fl);
+    /* after each RK4 step: vel0 the velocity at its start */
+    void (*after_step)(plant_fx *f, double *x, double vel0, double h);
+    /* after each tick of dt_s: memories and filters (first: the first tick) */
+    void (*after_tick)(plant_fx *f, double dt_s, bool first);
+    /* what the transducers report, from the filtered values in out */
+    void (*sensed)(const plant_fx *f, double out[4]);
+} plant_fx_ops;
+
+/* One catalogued effect. */
+typedef struct {
+    const char *name;
+    int id;
+    int nparams;
+    double lo[PLANT_FX_MAX_PARAMS], hi[PLANT_FX_MAX_PARAMS]; /* accepted ranges, SI */
+    const plant_fx_ops *ops;
+} plant_fx_model;
+
+/* The candidates (generated from effects.json). */
+extern const plant_fx_model plant_fx_catalogue[];
+extern const int plant_fx_catalogue_count;
+/* The catalogue entry with this id in a table, or NULL. */
+const plant_fx_model *plant_fx_find(const plant_fx_model *table, int count, int id);
+
+struct plant_fx {
     plant pl;
-    plant_fx_spec fx;
+    const plant_fx_model *model; /* NULL: the nominal plant */
+    double q[PLANT_FX_MAX_PARAMS];
     double xe[PLANT_FX_NX];
     double y_ref_m;            /* height the area corrections are centred on */
     /* valve delays: commanded and effective states, pending switch time */
@@ -68,15 +75,30 @@ typedef struct {
     /* transducer filters: [height, p2, p1, p3][stage] */
     double sens[4][2];
     bool sens_ready;
-} plant_fx;
+};
 
-/* Returns 0, or -1 if the spec is unknown or a parameter is out of its range. */
-int plant_fx_init(plant_fx *f, const plant_params *p, const plant_fx_spec *fx);
+/* model NULL = nominal. Returns 0, or -1 if a parameter is outside the model's range. */
+int plant_fx_init(plant_fx *f, const plant_params *p, const plant_fx_model *model, const double *params);
 /* Inputs for the next steps (valve delays act here, at the plant's current time). */
 void plant_fx_set_inputs(plant_fx *f, const plant_inputs *in);
 /* RK4 over dt_s in substeps, extra states included; then the per-tick memories. */
 void plant_fx_advance(plant_fx *f, double dt_s, int substeps);
 /* What the transducers report: height m, P2, P1, P3 Pa abs (P3 = ambient without accumulator). */
 void plant_fx_sensed(const plant_fx *f, double out[4]);
+
+/* ---- building blocks shared by candidate and truth models ---- */
+
+/* ISO 6358 flow when b > 0, else eq. 8/9: mass flow a -> b (+), Cd A per direction. */
+double plant_fx_two_way(const plant *pl, double cda_fwd, double cda_back, double pa, double pb, double b);
+/* The pressure equations of plant.c with new compressor/spring/vent flows in place of fl's. */
+void plant_fx_replace_flows(const plant *pl, const double *x, double *dx, const plant_flows *fl, double m_c,
+                            double m_s, double m_v);
+/* Energy balance of the gas in spring and pipe with a wall at tw and time constant tau. */
+void plant_fx_thermal_balance(const plant_fx *f, const double *x, double *dx, const plant_flows *fl, double tau,
+                              double tw);
+/* Effective area scaled by s at this state: volume rate and pressure force scale with it. */
+void plant_fx_scale_area(const plant_fx *f, const double *x, double *dx, double s);
+/* First-order lag over dt towards target (tau ~ 0: the target). */
+double plant_fx_lag(double state, double target, double tau, double dt);
 
 #endif /* LEVELER_PLANT_EFFECTS_H */

@@ -15,6 +15,26 @@
 
 #include "effects.h"
 
+/* The blind test's truth variants (host_sim/blindtest/truth.c), tested here too. */
+extern const plant_fx_model truth_catalogue[];
+extern const int truth_catalogue_count;
+
+enum { THERMAL = 1, AREA, FRICTION, VALVE_DYNAMICS, LINE_DELAY, LEAK, SENSOR_LAG };
+
+static const plant_fx_model *candidate(int id)
+{
+    const plant_fx_model *m = plant_fx_find(plant_fx_catalogue, plant_fx_catalogue_count, id);
+    assert_non_null(m);
+    return m;
+}
+
+static const plant_fx_model *truth(int id)
+{
+    const plant_fx_model *m = plant_fx_find(truth_catalogue, truth_catalogue_count, id);
+    assert_non_null(m);
+    return m;
+}
+
 static plant_params thesis(void)
 {
     plant_config cfg;
@@ -47,28 +67,27 @@ static void assert_finite(const plant_fx *f)
 static void test_every_kind_stays_finite(void **state)
 {
     (void)state;
-    static const struct { int kind; double p[PLANT_FX_MAX_PARAMS]; } cases[] = {
-        {PLANT_FX_THERMAL, {5.0}},
-        {PLANT_FX_AREA, {2.0, -50.0, 0.03}},
-        {PLANT_FX_FRICTION, {100.0, 50.0, 0.005}},
-        {PLANT_FX_VALVE, {0.1, 0.2, 0.3, 0.8}},
-        {PLANT_FX_LINE, {0.2, 3e-4}},
-        {PLANT_FX_LEAK, {2e-8}},
-        {PLANT_FX_SENSOR, {0.3, 0.1, 2000.0, 0.001}},
-        {PLANT_FX_TRUTH + PLANT_FX_THERMAL, {8.0, 300.0, 10.0}},
-        {PLANT_FX_TRUTH + PLANT_FX_AREA, {0.05, -0.03, 0.0, 0.04, -0.05}},
-        {PLANT_FX_TRUTH + PLANT_FX_FRICTION, {100.0, 60.0, 0.004, 2e5, 2000.0}},
-        {PLANT_FX_TRUTH + PLANT_FX_VALVE, {0.1, 0.15, 0.3, 0.8}},
-        {PLANT_FX_TRUTH + PLANT_FX_LINE, {3e-4, 1e-8}},
-        {PLANT_FX_TRUTH + PLANT_FX_LEAK, {1e-16}},
-        {PLANT_FX_TRUTH + PLANT_FX_SENSOR, {0.3, 0.15, 0.1, 3000.0, 0.005, 5e-4}},
+    static const struct { bool truth; int id; double p[PLANT_FX_MAX_PARAMS]; } cases[] = {
+        {false, THERMAL, {5.0}},
+        {false, AREA, {2.0, -50.0, 0.03}},
+        {false, FRICTION, {100.0, 50.0, 0.005}},
+        {false, VALVE_DYNAMICS, {0.1, 0.2, 0.3, 0.8}},
+        {false, LINE_DELAY, {0.2, 3e-4}},
+        {false, LEAK, {2e-8}},
+        {false, SENSOR_LAG, {0.3, 0.1, 2000.0, 0.001}},
+        {true, THERMAL, {8.0, 300.0, 10.0}},
+        {true, AREA, {0.05, -0.03, 0.0, 0.04, -0.05}},
+        {true, FRICTION, {100.0, 60.0, 0.004, 2e5, 2000.0}},
+        {true, VALVE_DYNAMICS, {0.1, 0.15, 0.3, 0.8}},
+        {true, LINE_DELAY, {3e-4, 1e-8}},
+        {true, LEAK, {1e-16}},
+        {true, SENSOR_LAG, {0.3, 0.15, 0.1, 3000.0, 0.005, 5e-4}},
     };
     plant_params p = thesis();
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
-        plant_fx_spec spec = {cases[i].kind, {0}};
-        memcpy(spec.p, cases[i].p, sizeof spec.p);
+        const plant_fx_model *m = cases[i].truth ? truth(cases[i].id) : candidate(cases[i].id);
         static plant_fx f;
-        assert_int_equal(plant_fx_init(&f, &p, &spec), 0);
+        assert_int_equal(plant_fx_init(&f, &p, m, cases[i].p), 0);
         cycle(&f);
         assert_finite(&f);
     }
@@ -89,16 +108,14 @@ static void test_off_is_the_nominal_plant(void **state)
     }
     /* "off" values: thermal tau 0, area 0/0/0, friction 0/0, valve 0/0/b 0/scale 1,
      * line 0/0, leak 0, sensor 0/0/0/0 */
-    static const struct { int kind; double p[PLANT_FX_MAX_PARAMS]; } off[] = {
-        {PLANT_FX_THERMAL, {0}}, {PLANT_FX_AREA, {0}}, {PLANT_FX_FRICTION, {0, 0, 0.005}},
-        {PLANT_FX_VALVE, {0, 0, 0, 1.0}}, {PLANT_FX_LINE, {0, 0}}, {PLANT_FX_LEAK, {0}},
-        {PLANT_FX_SENSOR, {0}},
+    static const struct { int id; double p[PLANT_FX_MAX_PARAMS]; } off[] = {
+        {THERMAL, {0}}, {AREA, {0}}, {FRICTION, {0, 0, 0.005}},
+        {VALVE_DYNAMICS, {0, 0, 0, 1.0}}, {LINE_DELAY, {0, 0}}, {LEAK, {0}},
+        {SENSOR_LAG, {0}},
     };
     for (size_t i = 0; i < sizeof off / sizeof off[0]; i++) {
-        plant_fx_spec spec = {off[i].kind, {0}};
-        memcpy(spec.p, off[i].p, sizeof spec.p);
         static plant_fx f;
-        assert_int_equal(plant_fx_init(&f, &p, &spec), 0);
+        assert_int_equal(plant_fx_init(&f, &p, candidate(off[i].id), off[i].p), 0);
         cycle(&f);
         for (int s = 0; s < PLANT_NX; s++)
             assert_true(f.pl.x[s] == ref.x[s]);
@@ -110,12 +127,10 @@ static void test_out_of_range_is_refused(void **state)
     (void)state;
     plant_params p = thesis();
     static plant_fx f;
-    plant_fx_spec leak = {PLANT_FX_LEAK, {-1e-8}};
-    assert_int_equal(plant_fx_init(&f, &p, &leak), -1);
-    plant_fx_spec nan_tau = {PLANT_FX_THERMAL, {NAN}};
-    assert_int_equal(plant_fx_init(&f, &p, &nan_tau), -1);
-    plant_fx_spec unknown = {42, {0}};
-    assert_int_equal(plant_fx_init(&f, &p, &unknown), -1);
+    const double leak[PLANT_FX_MAX_PARAMS] = {-1e-8}, nan_tau[PLANT_FX_MAX_PARAMS] = {NAN};
+    assert_int_equal(plant_fx_init(&f, &p, candidate(LEAK), leak), -1);
+    assert_int_equal(plant_fx_init(&f, &p, candidate(THERMAL), nan_tau), -1);
+    assert_null(plant_fx_find(plant_fx_catalogue, plant_fx_catalogue_count, 42)); /* unknown */
 }
 
 static void test_leak_empties_and_closed_plant_keeps_mass(void **state)
@@ -123,9 +138,9 @@ static void test_leak_empties_and_closed_plant_keeps_mass(void **state)
     (void)state;
     plant_params p = thesis();
     static plant_fx none, leak;
-    plant_fx_spec s0 = {PLANT_FX_NONE, {0}}, s1 = {PLANT_FX_TRUTH + PLANT_FX_LEAK, {1e-16}};
-    assert_int_equal(plant_fx_init(&none, &p, &s0), 0);
-    assert_int_equal(plant_fx_init(&leak, &p, &s1), 0);
+    const double k[PLANT_FX_MAX_PARAMS] = {1e-16};
+    assert_int_equal(plant_fx_init(&none, &p, NULL, NULL), 0);
+    assert_int_equal(plant_fx_init(&leak, &p, truth(LEAK), k), 0);
     plant_inputs in = {false, false, false, false, 4003.4};
     plant_fx_set_inputs(&none, &in);
     plant_fx_set_inputs(&leak, &in);

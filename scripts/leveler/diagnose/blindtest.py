@@ -2,8 +2,9 @@
 
 For each case (seven effects and `none`) and seed: the C plant with the
 effect's TRUTH variant (a different functional form from the candidate the
-diagnosis fits, host_sim/plant/effects.c) at a random strength within its
-physical range runs closed loop with the firmware, on three different load
+diagnosis fits: host_sim/blindtest/truth.c, catalogued in truth.json, built
+into libleveler_truth.so, not part of the product) at a random strength
+within its physical range runs closed loop with the firmware, on three different load
 schedules (two for calibration, one held out); sensor noise is added. The
 label is sealed in a file the diagnosis never sees; the diagnosis runs as a
 separate process on the logs alone. Then: confusion matrix, hit rate,
@@ -34,27 +35,24 @@ CONFIG = "thesis-900lb"
 CASES = fx.NAMES + ["none"]
 NOISE_HEIGHT_M = 0.08e-3     # LVDT: about one 12-bit count of a 0.25 m span
 NOISE_PRESSURE_PA = 300.0    # transducer: about one count of a 1.38 MPa span
-IN3 = thesis.M_PER_IN ** 3
+
+
+TRUTH_CATALOGUE = os.path.join(os.path.dirname(__file__), "..", "..", "..", "host_sim", "blindtest", "truth.json")
+
+
+def _truth_catalogue():
+    with open(TRUTH_CATALOGUE) as fh:
+        return {e["name"]: e for e in json.load(fh)["effects"]}
+
+
+TRUTH = _truth_catalogue()
 
 
 def truth_params(effect, rng):
-    """Random strength within physical ranges, in the truth variant's parameter order."""
-    u = rng.uniform
-    if effect == "thermal":      # gas-wall tau, wall-room tau, wall/gas heat capacity ratio
-        return [u(2.0, 20.0), u(60.0, 600.0), u(3.0, 30.0)]
-    if effect == "area":         # relative area deviation at 5 heights, y_ref -40..+40 mm
-        return list(u(-0.06, 0.06, 5))
-    if effect == "friction":     # LuGre: Fc, Fs extra, vs, sigma0, sigma1
-        return [u(40.0, 150.0), u(20.0, 100.0), u(1e-3, 1e-2), u(1e5, 3e5), u(1000.0, 3000.0)]
-    if effect == "valve_dynamics":  # opening tau, closing tau, Cd slope, outflow scale
-        return [u(0.03, 0.2), u(0.03, 0.2), u(0.1, 0.4), u(0.6, 1.5)]
-    if effect == "line_delay":   # tube volume, laminar conductance
-        return [u(5.0, 20.0) * IN3, u(5e-9, 2e-8)]
-    if effect == "leak":         # laminar K: m = K (P2^2 - Pa^2)
-        return [u(3e-17, 2e-16)]
-    if effect == "sensor_lag":   # lag 1, lag 2, height lag, P2 offset, gain error, height offset
-        return [u(0.1, 0.5), u(0.05, 0.3), u(0.0, 0.2), u(-5e3, 5e3), u(-0.005, 0.005), u(-1e-3, 1e-3)]
-    return []
+    """Random strength within physical ranges (truth.json "draw"), in the truth variant's parameter order."""
+    if effect not in TRUTH:
+        return []
+    return [float(rng.uniform(*p["draw"])) for p in TRUTH[effect]["params"]]
 
 
 def schedules(rng):

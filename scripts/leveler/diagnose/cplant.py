@@ -1,4 +1,4 @@
-"""The project's C plant through ctypes (host_sim/diagnose/diag_shim.c, host_sim/plant/effects.c).
+"""The project's C plant through ctypes (host_sim/diagnose/diag_shim.c, host_sim/plant/effects*.c).
 
 The shared library `libleveler_diag.so` is built without sanitizers by
 host_sim/diagnose/CMakeLists.txt. It is looked up in $LEVELER_DIAG_LIB, then in
@@ -19,26 +19,30 @@ ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "..")
 CONFIG_DIR = os.path.join(ROOT, "host_sim", "configs")
 ABI = 1
 MAX_PARAMS = 8
-TRUTH = 100
 SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
 COMMANDS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
 SCENARIO_KEYS = ("base_load_n", "step_load_n", "step_on_s", "step_off_s", "end_s")
 
 
-def find_library():
-    env = os.environ.get("LEVELER_DIAG_LIB")
-    if env:
-        if not os.path.isfile(env):
-            raise DiagnoseInputError(f"LEVELER_DIAG_LIB={env}: no such file")
-        return env
+def find_library(env="LEVELER_DIAG_LIB", folder="diagnose", name="libleveler_diag.so", target="leveler_diag"):
+    path = os.environ.get(env)
+    if path:
+        if not os.path.isfile(path):
+            raise DiagnoseInputError(f"{env}={path}: no such file")
+        return path
     cands = []
     for b in ("build/sim", "build/bench", "build/test", "build/*"):
-        cands += glob.glob(os.path.join(ROOT, b, "host_sim", "diagnose", "libleveler_diag.so"))
+        cands += glob.glob(os.path.join(ROOT, b, "host_sim", folder, name))
     cands = [c for c in cands if os.path.isfile(c)]
     if not cands:
-        raise DiagnoseInputError("libleveler_diag.so not found: build it with "
-                                 "`cmake --build build/sim --target leveler_diag` or set LEVELER_DIAG_LIB")
+        raise DiagnoseInputError(f"{name} not found: build it with "
+                                 f"`cmake --build build/sim --target {target}` or set {env}")
     return max(cands, key=os.path.getmtime)
+
+
+def find_truth_library():
+    """The blind test's truth variants (host_sim/blindtest/), not part of the product."""
+    return find_library("LEVELER_TRUTH_LIB", "blindtest", "libleveler_truth.so", "leveler_truth")
 
 
 @functools.lru_cache(maxsize=None)
@@ -93,18 +97,24 @@ def initial_state(run):
     return out
 
 
+def _bind(f):
+    """diag_simulate's signature (truth_simulate has the same)."""
+    f.restype = ctypes.c_int
+    f.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double),
+                  ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32), ctypes.c_int,
+                  ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
+                  ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32),
+                  ctypes.c_char_p, ctypes.c_int]
+    return f
+
+
 class CPlant(Simulator):
     def __init__(self, lib_path=None):
         self.lib = _library(lib_path or find_library())
         if self.lib.diag_abi_version() != ABI:
             raise DiagnoseInputError("libleveler_diag.so has another ABI version; rebuild it")
-        f = self.lib.diag_simulate
-        f.restype = ctypes.c_int
-        f.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double),
-                      ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32), ctypes.c_int,
-                      ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
-                      ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32),
-                      ctypes.c_char_p, ctypes.c_int]
+        self.simulate_fn = _bind(self.lib.diag_simulate)
+        self.truth_fn = None   # the blind test's truth library, loaded when generate() is first called
         self.lib.diag_config_check.restype = ctypes.c_int
         self.lib.diag_config_check.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_int]
 
@@ -121,7 +131,7 @@ class CPlant(Simulator):
         if self.lib.diag_config_check(path.encode(), err, len(err)) != 0:
             raise DiagnoseInputError(err.value.decode(errors="replace"))
 
-    def _call(self, config, t_s, load_n, commands, kind, values, init):
+    def _call(self, config, t_s, load_n, commands, kind, values, init, fn=None):
         n = len(t_s)
         t = np.ascontiguousarray(t_s, dtype=np.float64)
         load = np.ascontiguousarray(load_n, dtype=np.float64)
@@ -135,7 +145,7 @@ class CPlant(Simulator):
             cmd = np.ascontiguousarray(np.stack([commands.get(c, np.zeros(n)) for c in COMMANDS], axis=1),
                                        dtype=np.int32)
         err = ctypes.create_string_buffer(512)
-        rc = self.lib.diag_simulate(config_path(config).encode(), n, _dptr(t), _dptr(load),
+        rc = (fn or self.simulate_fn)(config_path(config).encode(), n, _dptr(t), _dptr(load),
                                     None if cmd is None else _iptr(cmd), kind, _dptr(p), _dptr(ini),
                                     _dptr(out), _iptr(cmd_out), err, len(err))
         if rc != 0:
@@ -159,22 +169,25 @@ class CPlant(Simulator):
             return self._call(config, run.t_s, run.load_n, run.commands, kind, values, init)
         return self._closed_loop(config, run.t_s, run.load_n, kind, values, init)
 
-    def _closed_loop(self, config, t_s, load_n, kind, values, init):
+    def _closed_loop(self, config, t_s, load_n, kind, values, init, fn=None):
         """The firmware ticks every 10 ms: simulate on that grid from the log's first
         time, holding the logged load, then read the trace at the log's own times."""
         tick = 0.01
         rel = t_s - t_s[0]
         if len(rel) > 1 and np.allclose(np.diff(rel), tick, atol=1e-6) and abs(rel[0]) < 1e-9:
-            return self._call(config, np.round(rel, 2), load_n, None, kind, values, init)
+            return self._call(config, np.round(rel, 2), load_n, None, kind, values, init, fn)
         grid = np.arange(0.0, rel[-1] + tick / 2, tick)
         idx = np.clip(np.searchsorted(rel, grid, side="right") - 1, 0, len(rel) - 1)
-        tr = self._call(config, grid, np.asarray(load_n)[idx], None, kind, values, init)
+        tr = self._call(config, grid, np.asarray(load_n)[idx], None, kind, values, init, fn)
         back = np.clip(np.searchsorted(grid, rel, side="right") - 1, 0, len(grid) - 1)
         return Trace(t_s, {k: np.interp(rel, grid, v) for k, v in tr.signals.items()},
                      {k: v[back] for k, v in tr.commands.items()})
 
     def generate(self, config, t_s, load_n, truth_effect, truth_params, seed=0):
-        """Closed loop with a truth variant: truth_params is the list of the variant's values."""
-        kind = 0 if truth_effect in (None, "none") else TRUTH + fx.get(truth_effect).effect_id
+        """Closed loop with a truth variant of the blind test (libleveler_truth.so, same
+        ids as the candidates): truth_params is the list of the variant's values."""
+        if self.truth_fn is None:
+            self.truth_fn = _bind(_library(find_truth_library()).truth_simulate)
+        kind = 0 if truth_effect in (None, "none") else fx.get(truth_effect).effect_id
         return self._closed_loop(config, np.asarray(t_s, dtype=float), load_n, kind,
-                                 list(truth_params or []), [np.nan] * 3)
+                                 list(truth_params or []), [np.nan] * 3, self.truth_fn)

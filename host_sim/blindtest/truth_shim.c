@@ -1,0 +1,24 @@
+/*
+ * libleveler_truth.so: the diagnosis library's run with the blind test's
+ * truth variants (truth.c, catalogued in truth.json) in place of the
+ * candidates, for scripts/leveler/diagnose/blindtest.py (ctypes).
+ */
+#include <stdio.h>
+
+#include "diag.h"
+
+extern const plant_fx_model truth_catalogue[];
+extern const int truth_catalogue_count;
+
+/* As diag_simulate (host_sim/diagnose/diag_shim.c), fx_kind naming a truth variant. */
+int truth_simulate(const char *config_path, int n, const double *t_s, const double *load_n,
+                   const int32_t *commands, int fx_kind, const double *fx_params, const double *init,
+                   double *out, int32_t *cmd_out, char *err, int err_len)
+{
+    const plant_fx_model *model = plant_fx_find(truth_catalogue, truth_catalogue_count, fx_kind);
+    if (fx_kind != 0 && !model) {
+        snprintf(err, (size_t)err_len, "truth variant %d: unknown (known: truth.json)", fx_kind);
+        return -1;
+    }
+    return diag_run(config_path, n, t_s, load_n, commands, model, fx_params, init, out, cmd_out, err, err_len);
+}

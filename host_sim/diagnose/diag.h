@@ -1,0 +1,18 @@
+/*
+ * The diagnosis library's one run (diag_shim.c), for its ctypes entry points
+ * and for the blind test's truth library (host_sim/blindtest/truth_shim.c),
+ * which runs its own effect models through it.
+ */
+#ifndef LEVELER_DIAG_H
+#define LEVELER_DIAG_H
+
+#include <stdint.h>
+
+#include "effects.h"
+
+/* diag_simulate() with the effect given as a model (NULL = none). */
+int diag_run(const char *config_path, int n, const double *t_s, const double *load_n, const int32_t *commands,
+             const plant_fx_model *model, const double *fx_params, const double *init, double *out,
+             int32_t *cmd_out, char *err, int err_len);
+
+#endif /* LEVELER_DIAG_H */
