@@ -146,109 +146,138 @@ static int run_report(const char *log, const char *summary, const char *plot, co
     return 0;
 }
 
-int main(int argc, char **argv)
+typedef struct {
+    const char *config, *schedule, *log, *summary, *plot, *units;
+    int algorithm; /* 0 = the config's */
+    int dump;
+    double end_s;
+} sim_args;
+
+/* One option with its value v. 0, or the exit status (2) after a message. */
+static int parse_option(sim_args *a, const char *opt, const char *v)
 {
-    const char *config = NULL, *schedule = NULL, *log = NULL, *summary = NULL, *plot = NULL;
-    const char *units = "thesis";
-    int algorithm = 0, dump = 0;
-    double end_s = 0.0;
+    if (strcmp(opt, "--config") == 0)
+        a->config = v;
+    else if (strcmp(opt, "--schedule") == 0)
+        a->schedule = v;
+    else if (strcmp(opt, "--log") == 0)
+        a->log = v;
+    else if (strcmp(opt, "--summary") == 0)
+        a->summary = v;
+    else if (strcmp(opt, "--plot") == 0)
+        a->plot = v;
+    else if (strcmp(opt, "--units") == 0) {
+        if (strcmp(v, "thesis") != 0 && strcmp(v, "si") != 0) {
+            fprintf(stderr, "leveler-sim: --units must be thesis or si, not '%s'\n", v);
+            return 2;
+        }
+        a->units = v;
+    } else if (strcmp(opt, "--algorithm") == 0) {
+        if (strcmp(v, "1") != 0 && strcmp(v, "2") != 0) {
+            fprintf(stderr, "leveler-sim: --algorithm must be 1 or 2, not '%s'\n", v);
+            return 2;
+        }
+        a->algorithm = v[0] - '0';
+    } else if (strcmp(opt, "--end-s") == 0) {
+        char *e;
+        a->end_s = strtod(v, &e);
+        if (*e || !(a->end_s > 0.0 && a->end_s <= 1e7)) {
+            fprintf(stderr, "leveler-sim: --end-s must be a number in (0, 1e7], not '%s'\n", v);
+            return 2;
+        }
+    } else {
+        fprintf(stderr, "leveler-sim: unknown option '%s'\n", opt);
+        usage(stderr);
+        return 2;
+    }
+    return 0;
+}
+
+/* -1 to go on, else the exit status (0 after --help). */
+static int parse_args(int argc, char **argv, sim_args *a)
+{
+    *a = (sim_args){.units = "thesis"};
     for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0) {
+        const char *opt = argv[i];
+        if (strcmp(opt, "-h") == 0 || strcmp(opt, "--help") == 0) {
             usage(stdout);
             return 0;
         }
-        if (strcmp(a, "--dump-config") == 0) {
-            dump = 1;
+        if (strcmp(opt, "--dump-config") == 0) {
+            a->dump = 1;
             continue;
         }
         if (i + 1 >= argc) {
-            fprintf(stderr, "leveler-sim: %s needs a value\n", a);
+            fprintf(stderr, "leveler-sim: %s needs a value\n", opt);
             usage(stderr);
             return 2;
         }
-        const char *v = argv[++i];
-        if (strcmp(a, "--config") == 0)
-            config = v;
-        else if (strcmp(a, "--schedule") == 0)
-            schedule = v;
-        else if (strcmp(a, "--log") == 0)
-            log = v;
-        else if (strcmp(a, "--summary") == 0)
-            summary = v;
-        else if (strcmp(a, "--plot") == 0)
-            plot = v;
-        else if (strcmp(a, "--units") == 0) {
-            if (strcmp(v, "thesis") != 0 && strcmp(v, "si") != 0) {
-                fprintf(stderr, "leveler-sim: --units must be thesis or si, not '%s'\n", v);
-                return 2;
-            }
-            units = v;
-        } else if (strcmp(a, "--algorithm") == 0) {
-            if (strcmp(v, "1") != 0 && strcmp(v, "2") != 0) {
-                fprintf(stderr, "leveler-sim: --algorithm must be 1 or 2, not '%s'\n", v);
-                return 2;
-            }
-            algorithm = v[0] - '0';
-        } else if (strcmp(a, "--end-s") == 0) {
-            char *e;
-            end_s = strtod(v, &e);
-            if (*e || !(end_s > 0.0 && end_s <= 1e7)) {
-                fprintf(stderr, "leveler-sim: --end-s must be a number in (0, 1e7], not '%s'\n", v);
-                return 2;
-            }
-        } else {
-            fprintf(stderr, "leveler-sim: unknown option '%s'\n", a);
-            usage(stderr);
-            return 2;
-        }
+        int rc = parse_option(a, opt, argv[++i]);
+        if (rc != 0)
+            return rc;
     }
-    if (dump)
-        return dump_config(config);
-    if (!config || !log) {
+    if (a->dump)
+        return -1;
+    if (!a->config || !a->log) {
         fprintf(stderr, "leveler-sim: --config and --log are required\n");
         usage(stderr);
         return 2;
     }
-    if ((summary || plot) && strcmp(log, "-") == 0) {
+    if ((a->summary || a->plot) && strcmp(a->log, "-") == 0) {
         fprintf(stderr, "leveler-sim: --summary/--plot need --log to be a file\n");
         return 2;
     }
+    return -1;
+}
 
+/* Load, open the log, run, close: the exit status. */
+static int simulate(const sim_args *a)
+{
     static plant_config cfg;
     char err[1024];
-    if (plant_config_load(config, &cfg, err, sizeof err) != 0) {
+    if (plant_config_load(a->config, &cfg, err, sizeof err) != 0) {
         fprintf(stderr, "leveler-sim: %s\n", err);
         return 2;
     }
     sim_load_step *steps = NULL;
     size_t nsteps = 0;
-    if (schedule && sim_schedule_load(schedule, &steps, &nsteps, err, sizeof err) != 0) {
+    if (a->schedule && sim_schedule_load(a->schedule, &steps, &nsteps, err, sizeof err) != 0) {
         fprintf(stderr, "leveler-sim: %s\n", err);
         return 2;
     }
-
-    runlog_options lo = {.path = log, .config_name = cfg.name, .source = "sim", .buffered = 1};
+    runlog_options lo = {.path = a->log, .config_name = cfg.name, .source = "sim", .buffered = 1};
     runlog *rl = runlog_open(&lo, err, sizeof err);
     if (!rl) {
         fprintf(stderr, "leveler-sim: %s\n", err);
         free(steps);
         return 2;
     }
-    sim_options so = {.config = &cfg, .algorithm = algorithm, .steps = steps, .step_count = nsteps,
-                      .end_s = end_s, .log = rl, .progress = progress};
+    sim_options so = {.config = &cfg, .algorithm = a->algorithm, .steps = steps, .step_count = nsteps,
+                      .end_s = a->end_s, .log = rl, .progress = progress};
     static sim_result res;
     int rc = sim_run(&so, &res, err, sizeof err);
     free(steps);
     if (runlog_close(rl) != 0 && rc == 0) {
-        fprintf(stderr, "leveler-sim: closing %s failed: %s\n", log, strerror(errno));
+        fprintf(stderr, "leveler-sim: closing %s failed: %s\n", a->log, strerror(errno));
         return 1;
     }
     if (rc != 0) {
         fprintf(stderr, "leveler-sim: %s\n", err);
         return 1;
     }
-    if (summary || plot)
-        return run_report(log, summary, plot, config, units);
     return 0;
+}
+
+int main(int argc, char **argv)
+{
+    sim_args a;
+    int rc = parse_args(argc, argv, &a);
+    if (rc >= 0)
+        return rc;
+    if (a.dump)
+        return dump_config(a.config);
+    rc = simulate(&a);
+    if (rc == 0 && (a.summary || a.plot))
+        rc = run_report(a.log, a.summary, a.plot, a.config, a.units);
+    return rc;
 }

@@ -43,7 +43,7 @@ def test_round_trip_is_exact(tmp_path):
 
 
 def test_reads_c_writer_style_and_empty_cells(tmp_path):
-    # As host_sim/common/runlog.c writes it: %.6f time, %.9g values, empty cells.
+    # As host_sim/runlog/runlog.c writes it: %.6f time, %.9g values, empty cells.
     p = write(tmp_path, TOP + "0.000000,0.39751,613633.1,,,4003.4,1,1,0,\n"
                               "0.010000,0.397515,613700,,,4003.4,1,,0,\n")
     log = runlog.read(p)
