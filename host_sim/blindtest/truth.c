@@ -137,12 +137,10 @@ static void leak_rhs(const plant_fx *f, const double *x, double *dx, const plant
 const plant_fx_ops truth_leak_ops = {.rhs = leak_rhs};
 
 /* ---- sensor_lag: two cascaded lags on pressure, gain error, offsets ---- */
-static void sensor_after_tick(plant_fx *f, double dt_s, bool first)
+static void sensor_after_tick(plant_fx *f, const double raw[4], double dt_s, bool first)
 {
     if (first)
         return;
-    double raw[4];
-    plant_sensed(&f->pl, raw);
     f->sens[0][0] = plant_fx_lag(f->sens[0][0], raw[0], f->q[2], dt_s);
     for (int c = 1; c < 4; c++) {
         f->sens[c][0] = plant_fx_lag(f->sens[c][0], raw[c], f->q[0], dt_s);

@@ -3,8 +3,6 @@
  * truth variants (truth.c, catalogued in truth.json) in place of the
  * candidates, for scripts/leveler/diagnose/blindtest.py (ctypes).
  */
-#include <stdio.h>
-
 #include "diag.h"
 
 extern const plant_fx_model truth_catalogue[];
@@ -15,10 +13,6 @@ int truth_simulate(const char *config_path, int n, const double *t_s, const doub
                    const int32_t *commands, int fx_kind, const double *fx_params, const double *init,
                    double *out, int32_t *cmd_out, char *err, int err_len)
 {
-    const plant_fx_model *model = plant_fx_find(truth_catalogue, truth_catalogue_count, fx_kind);
-    if (fx_kind != 0 && !model) {
-        snprintf(err, (size_t)err_len, "truth variant %d: unknown (known: truth.json)", fx_kind);
-        return -1;
-    }
-    return diag_run(config_path, n, t_s, load_n, commands, model, fx_params, init, out, cmd_out, err, err_len);
+    return diag_run(truth_catalogue, truth_catalogue_count, config_path, n, t_s, load_n, commands, fx_kind,
+                    fx_params, init, out, cmd_out, err, err_len);
 }

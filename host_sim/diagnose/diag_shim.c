@@ -101,18 +101,19 @@ int diag_simulate(const char *config_path, int n, const double *t_s, const doubl
                   const int32_t *commands, int fx_kind, const double *fx_params, const double *init,
                   double *out, int32_t *cmd_out, char *err, int err_len)
 {
-    const plant_fx_model *model = plant_fx_find(plant_fx_catalogue, plant_fx_catalogue_count, fx_kind);
-    if (fx_kind != 0 && !model) {
-        snprintf(err, (size_t)err_len, "effect %d: unknown (known: effects.json)", fx_kind);
-        return -1;
-    }
-    return diag_run(config_path, n, t_s, load_n, commands, model, fx_params, init, out, cmd_out, err, err_len);
+    return diag_run(plant_fx_catalogue, plant_fx_catalogue_count, config_path, n, t_s, load_n, commands, fx_kind,
+                    fx_params, init, out, cmd_out, err, err_len);
 }
 
-int diag_run(const char *config_path, int n, const double *t_s, const double *load_n, const int32_t *commands,
-             const plant_fx_model *model, const double *fx_params, const double *init, double *out,
-             int32_t *cmd_out, char *err, int err_len)
+int diag_run(const plant_fx_model *table, int table_count, const char *config_path, int n, const double *t_s,
+             const double *load_n, const int32_t *commands, int fx_kind, const double *fx_params,
+             const double *init, double *out, int32_t *cmd_out, char *err, int err_len)
 {
+    const plant_fx_model *model = plant_fx_find(table, table_count, fx_kind);
+    if (fx_kind != 0 && !model) {
+        snprintf(err, (size_t)err_len, "effect %d: unknown", fx_kind);
+        return -1;
+    }
     static plant_config cfg;
     static plant_fx f;
     if (plant_config_load(config_path, &cfg, err, (size_t)err_len) != 0)

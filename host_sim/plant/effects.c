@@ -84,16 +84,16 @@ void plant_fx_advance(plant_fx *f, double dt_s, int substeps)
             rk4_step(f, dt_s / substeps);
     }
     /* the transducer filters start from the first tick's values */
+    double raw[4];
+    plant_sensed(&f->pl, raw);
     bool first = !f->sens_ready;
     if (first) {
-        double raw[4];
-        plant_sensed(&f->pl, raw);
         for (int c = 0; c < 4; c++)
             f->sens[c][0] = f->sens[c][1] = raw[c];
         f->sens_ready = true;
     }
     if (f->model && f->model->ops->after_tick)
-        f->model->ops->after_tick(f, dt_s, first);
+        f->model->ops->after_tick(f, raw, dt_s, first);
 }
 
 void plant_fx_sensed(const plant_fx *f, double out[4])

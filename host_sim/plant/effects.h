@@ -38,8 +38,9 @@ typedef struct {
     void (*rhs)(const plant_fx *f, const double *x, double *dx, const plant_flows *fl);
     /* after each RK4 step: vel0 the velocity at its start */
     void (*after_step)(plant_fx *f, double *x, double vel0, double h);
-    /* after each tick of dt_s: memories and filters (first: the first tick) */
-    void (*after_tick)(plant_fx *f, double dt_s, bool first);
+    /* after each tick of dt_s: memories and filters; raw: what ideal
+     * transducers read now; first: the first tick (the filters start from raw) */
+    void (*after_tick)(plant_fx *f, const double raw[4], double dt_s, bool first);
     /* what the transducers report, from the filtered values in out */
     void (*sensed)(const plant_fx *f, double out[4]);
 } plant_fx_ops;

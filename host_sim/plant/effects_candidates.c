@@ -104,8 +104,9 @@ static void line_rhs(const plant_fx *f, const double *x, double *dx, const plant
 }
 
 /* The compressor flow of this tick, read back delay/dt ticks later. */
-static void line_after_tick(plant_fx *f, double dt_s, bool first)
+static void line_after_tick(plant_fx *f, const double raw[4], double dt_s, bool first)
 {
+    (void)raw;
     (void)first;
     double dx[PLANT_NX];
     plant_flows fl;
@@ -130,12 +131,10 @@ static void leak_rhs(const plant_fx *f, const double *x, double *dx, const plant
 const plant_fx_ops fx_leak_ops = {.rhs = leak_rhs};
 
 /* ---- sensor_lag: first-order lags, offsets ---- */
-static void sensor_after_tick(plant_fx *f, double dt_s, bool first)
+static void sensor_after_tick(plant_fx *f, const double raw[4], double dt_s, bool first)
 {
     if (first)
         return;
-    double raw[4];
-    plant_sensed(&f->pl, raw);
     f->sens[0][0] = plant_fx_lag(f->sens[0][0], raw[0], f->q[1], dt_s);
     for (int c = 1; c < 4; c++)
         f->sens[c][0] = plant_fx_lag(f->sens[c][0], raw[c], f->q[0], dt_s);
