@@ -76,7 +76,6 @@ from typing import List, Optional
 import numpy as np
 from scipy import ndimage
 
-from . import thesis
 
 SUMMARY_KEYS = (
     "height_before_step_m", "lowest_height_m", "p2_drop_stop_pa", "time_stuck_bottom_s",
@@ -88,9 +87,10 @@ SUMMARY_KEYS = (
 
 @dataclasses.dataclass
 class EventOptions:
-    """Tuning of the event extraction. Defaults suit 1..100 Hz logs."""
-    band_lower_m: float = thesis.SCENARIO["band_lower_m"]
-    band_upper_m: float = thesis.SCENARIO["band_upper_m"]
+    """Tuning of the event extraction. Defaults suit 1..100 Hz logs. The band
+    defaults to the built-in config's, as the C loader gives it (leveler.config)."""
+    band_lower_m: Optional[float] = None
+    band_upper_m: Optional[float] = None
     step_min_n: float = 100.0        # smaller load changes are not events (200 lb = 890 N)
     smooth_s: float = 0.2            # moving-median window
     rest_tol_min_m: float = 0.25e-3  # about the thesis's 0.01 in resolution
@@ -368,6 +368,13 @@ def _excursion(t, h_raw, h_s, p2_raw, event, window_end, direction, tol, opts):
 def analyze(log, options: Optional[EventOptions] = None) -> Analysis:
     """Finds the load events and the figures of the first step and removal."""
     opts = options or EventOptions()
+    if opts.band_lower_m is None or opts.band_upper_m is None:
+        from . import config
+        built_in = config.default_config()
+        opts = dataclasses.replace(opts, band_lower_m=opts.band_lower_m if opts.band_lower_m is not None
+                                   else built_in.band_lower_m,
+                                   band_upper_m=opts.band_upper_m if opts.band_upper_m is not None
+                                   else built_in.band_upper_m)
     t = np.asarray(log.t_s, dtype=float)
     h = np.asarray(log.height_m, dtype=float)
     p2 = np.asarray(log.p_spring_pa, dtype=float)

@@ -66,8 +66,6 @@ SCENARIO = {
     "removal_time_s": 35.0,
     "end_time_s": 55.0,
     "step_load_n": lb_to_n(200.0),
-    "band_lower_m": in_to_m(15.6),
-    "band_upper_m": in_to_m(15.8),
     "set_height_m": in_to_m(15.65),
 }
 
