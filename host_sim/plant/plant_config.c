@@ -6,6 +6,7 @@
  */
 #define _POSIX_C_SOURCE 200809L
 #include "plant.h"
+#include "config_table.h"
 
 #include <errno.h>
 #include <ini.h>
@@ -17,22 +18,11 @@
 
 /* ---- units ---- */
 
-typedef enum {
-    K_NONE, K_INT, K_PABS, K_PGAUGE, K_PDIFF, K_VOLUME, K_LENGTH, K_VEL, K_MASS, K_FORCE, K_LDAMP,
-    K_TIME, K_ANGVEL, K_TEMP, K_GASR, K_INERTIA, K_KT, K_RDAMP, K_CAP, K_LEAK, K_SLOPE, K_VOLT, K_COUNTS
-} kind;
-
-typedef struct {
-    kind k;
-    const char *suffix;
-    double factor; /* SI = value * factor (+ ambient when gauge) */
-    int gauge;     /* K_PABS written as gauge: ambient added at the end */
-} unit;
 
 #define LBF_IN (PLANT_N_PER_LBF * PLANT_M_PER_IN)
 #define IN3 (PLANT_M_PER_IN * PLANT_M_PER_IN * PLANT_M_PER_IN)
 
-static const unit units[] = {
+const unit units[] = {
     {K_PABS, "pa", 1.0, 0}, {K_PABS, "kpa", 1e3, 0}, {K_PABS, "bar", 1e5, 0},
     {K_PABS, "psia", PLANT_PA_PER_PSI, 0}, {K_PABS, "pag", 1.0, 1}, {K_PABS, "psig", PLANT_PA_PER_PSI, 1},
     {K_PGAUGE, "pag", 1.0, 0}, {K_PGAUGE, "psig", PLANT_PA_PER_PSI, 0},
@@ -60,23 +50,13 @@ static const unit units[] = {
 
 /* ---- fields ---- */
 
-typedef enum { T_DOUBLE, T_INT, T_U32 } ftype;
-
-typedef struct {
-    const char *section; /* "hysteresis" = every [hysteresis.N]; offset then into the band */
-    const char *base;
-    kind k;
-    ftype t;
-    size_t offset;
-    double min_si, max_si;
-} field;
 
 #define PP(m) offsetof(plant_config, plant.m)
 #define SP(m) offsetof(plant_config, sensors.m)
 #define CF(m) offsetof(plant_config, m)
 #define HB(m) offsetof(plant_hysteresis_band, m)
 
-static const field fields[] = {
+const field fields[] = {
     {"ambient", "pressure", K_PABS, T_DOUBLE, PP(ambient_pa), 50e3, 120e3},
     {"ambient", "temperature", K_TEMP, T_DOUBLE, PP(temperature_k), 200, 400},
     {"ambient", "gas_constant", K_GASR, T_DOUBLE, PP(gas_constant_j_per_kg_k), 250, 320},
@@ -141,6 +121,8 @@ static const field fields[] = {
     {"solver", "substeps_per_tick", K_INT, T_INT, CF(substeps_per_tick), 1, 1000},
 };
 #define FIELD_COUNT (sizeof fields / sizeof fields[0])
+const size_t config_unit_count = sizeof units / sizeof units[0];
+const size_t config_field_count = FIELD_COUNT;
 
 /* Keys handled by hand (strings, lists). */
 static const char *const special_keys[][2] = {
@@ -274,112 +256,129 @@ static void allowed_suffixes(kind k, char *buf, size_t len)
         }
 }
 
-static int handle_special(file_ctx *fc, const char *section, const char *name, const char *value)
+/* The keys read by hand (strings, lists): 1 done, 0 failed (message set). */
+static int key_include(file_ctx *fc, const char *section, const char *name, const char *value)
 {
     load_ctx *ctx = fc->ctx;
-    plant_config *cfg = ctx->cfg;
-    if (strcmp(section, "config") == 0 && strcmp(name, "include") == 0) {
-        if (fc->keys_seen != 1) {
-            fail(fc, section, name, value, "include must be the first key of the file");
-            return 0;
-        }
-        if (ctx->depth >= 4) {
-            fail(fc, section, name, value, "includes nested more than 4 deep");
-            return 0;
-        }
-        char inc[PLANT_PATH_MAX];
-        const char *slash = strrchr(fc->path, '/');
-        if (value[0] != '/' && slash)
-            snprintf(inc, sizeof inc, "%.*s/%s", (int)(slash - fc->path), fc->path, value);
-        else
-            snprintf(inc, sizeof inc, "%s", value);
-        ctx->depth++;
-        load_file(ctx, inc);
-        ctx->depth--;
-        return 1;
+    if (fc->keys_seen != 1) {
+        fail(fc, section, name, value, "include must be the first key of the file");
+        return 0;
     }
-    if (strcmp(section, "config") == 0 && strcmp(name, "name") == 0) {
-        if (!value[0] || strlen(value) >= PLANT_NAME_MAX) {
-            fail(fc, section, name, value, "name must be 1..%d characters", PLANT_NAME_MAX - 1);
-            return 0;
-        }
-        snprintf(cfg->name, sizeof cfg->name, "%s", value);
-        return 1;
+    if (ctx->depth >= 4) {
+        fail(fc, section, name, value, "includes nested more than 4 deep");
+        return 0;
     }
-    if (strcmp(section, "accumulator") == 0 && strcmp(name, "type") == 0) {
-        if (strcmp(value, "none") == 0)
-            cfg->plant.acc_type = PLANT_ACC_NONE;
-        else if (strcmp(value, "tube") == 0)
-            cfg->plant.acc_type = PLANT_ACC_TUBE;
-        else if (strcmp(value, "diaphragm") == 0)
-            cfg->plant.acc_type = PLANT_ACC_DIAPHRAGM;
-        else {
-            fail(fc, section, name, value, "allowed: none, tube, diaphragm");
-            return 0;
-        }
-        return 1;
-    }
-    if (strcmp(section, "spring") == 0 &&
-        (strcmp(name, "area_cc1_poly_in2") == 0 || strcmp(name, "area_cc2_poly_in2_per_in") == 0)) {
-        int cc1 = strcmp(name, "area_cc1_poly_in2") == 0;
-        double *dst = cc1 ? cfg->plant.area_cc1_in2 : cfg->plant.area_cc2_in2_per_in;
-        int *cnt = cc1 ? &cfg->plant.area_cc1_terms : &cfg->plant.area_cc2_terms;
-        double tmp[PLANT_MAX_POLY];
-        int n;
-        if (parse_list(value, tmp, PLANT_MAX_POLY, &n) != 0) {
-            fail(fc, section, name, value, "expected 1..%d numbers (coefficients of DL^0, DL^1, ...)",
-                 PLANT_MAX_POLY);
-            return 0;
-        }
-        memset(dst, 0, sizeof(double) * PLANT_MAX_POLY);
-        memcpy(dst, tmp, sizeof(double) * (size_t)n);
-        *cnt = n;
-        return 1;
-    }
-    if (strcmp(section, "accumulator") == 0 && strncmp(name, "diaphragm_", 10) == 0) {
-        /* Thesis units, converted to SI here; counts are checked together in plant_config_check. */
-        static const double in3 = PLANT_M_PER_IN * PLANT_M_PER_IN * PLANT_M_PER_IN;
-        plant_params *p = &cfg->plant;
-        double tmp[PLANT_MAX_DIAPHRAGM_SEGMENTS];
-        int n;
-        if (strcmp(name, "diaphragm_breaks_psia") == 0) {
-            if (parse_list(value, tmp, PLANT_MAX_DIAPHRAGM_SEGMENTS - 1, &n) != 0) {
-                fail(fc, section, name, value, "expected 1..%d pressures, psia, rising", PLANT_MAX_DIAPHRAGM_SEGMENTS - 1);
-                return 0;
-            }
-            for (int i = 0; i < n; i++) {
-                if (!(tmp[i] > 0.0 && tmp[i] < 300.0) || (i > 0 && !(tmp[i] > tmp[i - 1]))) {
-                    fail(fc, section, name, value, "break %d: %g psia; breaks must rise, each in (0, 300) psia", i + 1,
-                         tmp[i]);
-                    return 0;
-                }
-                p->diaphragm_break_pa[i] = tmp[i] * PLANT_PA_PER_PSI;
-            }
-            p->diaphragm_segments = n + 1;
-            return 1;
-        }
-        int slope = strcmp(name, "diaphragm_slopes_in3_per_psi") == 0;
-        if (slope || strcmp(name, "diaphragm_intercepts_in3") == 0) {
-            if (parse_list(value, tmp, PLANT_MAX_DIAPHRAGM_SEGMENTS, &n) != 0) {
-                fail(fc, section, name, value, "expected 1..%d numbers, one per segment", PLANT_MAX_DIAPHRAGM_SEGMENTS);
-                return 0;
-            }
-            for (int i = 0; i < n; i++) {
-                if (slope && !(tmp[i] >= 0.0 && tmp[i] <= 1000.0)) {
-                    fail(fc, section, name, value, "segment %d: %g in^3/psi out of range [0, 1000]", i + 1, tmp[i]);
-                    return 0;
-                }
-                if (slope)
-                    p->diaphragm_slope_m3_per_pa[i] = tmp[i] * in3 / PLANT_PA_PER_PSI;
-                else
-                    p->diaphragm_intercept_m3[i] = tmp[i] * in3;
-            }
-            *(slope ? &p->diaphragm_slope_count : &p->diaphragm_intercept_count) = n;
-            return 1;
-        }
-    }
-    return -1; /* not special */
+    char inc[PLANT_PATH_MAX];
+    const char *slash = strrchr(fc->path, '/');
+    if (value[0] != '/' && slash)
+        snprintf(inc, sizeof inc, "%.*s/%s", (int)(slash - fc->path), fc->path, value);
+    else
+        snprintf(inc, sizeof inc, "%s", value);
+    ctx->depth++;
+    load_file(ctx, inc);
+    ctx->depth--;
+    return 1;
 }
+
+static int key_name(file_ctx *fc, const char *section, const char *name, const char *value)
+{
+    plant_config *cfg = fc->ctx->cfg;
+    if (!value[0] || strlen(value) >= PLANT_NAME_MAX) {
+        fail(fc, section, name, value, "name must be 1..%d characters", PLANT_NAME_MAX - 1);
+        return 0;
+    }
+    snprintf(cfg->name, sizeof cfg->name, "%s", value);
+    return 1;
+}
+
+static int key_acc_type(file_ctx *fc, const char *section, const char *name, const char *value)
+{
+    plant_config *cfg = fc->ctx->cfg;
+    if (strcmp(value, "none") == 0)
+        cfg->plant.acc_type = PLANT_ACC_NONE;
+    else if (strcmp(value, "tube") == 0)
+        cfg->plant.acc_type = PLANT_ACC_TUBE;
+    else if (strcmp(value, "diaphragm") == 0)
+        cfg->plant.acc_type = PLANT_ACC_DIAPHRAGM;
+    else {
+        fail(fc, section, name, value, "allowed: none, tube, diaphragm");
+        return 0;
+    }
+    return 1;
+}
+
+static int key_area_poly(file_ctx *fc, const char *section, const char *name, const char *value)
+{
+    plant_config *cfg = fc->ctx->cfg;
+    int cc1 = strcmp(name, "area_cc1_poly_in2") == 0;
+    double *dst = cc1 ? cfg->plant.area_cc1_in2 : cfg->plant.area_cc2_in2_per_in;
+    int *cnt = cc1 ? &cfg->plant.area_cc1_terms : &cfg->plant.area_cc2_terms;
+    double tmp[PLANT_MAX_POLY];
+    int n;
+    if (parse_list(value, tmp, PLANT_MAX_POLY, &n) != 0) {
+        fail(fc, section, name, value, "expected 1..%d numbers (coefficients of DL^0, DL^1, ...)", PLANT_MAX_POLY);
+        return 0;
+    }
+    memset(dst, 0, sizeof(double) * PLANT_MAX_POLY);
+    memcpy(dst, tmp, sizeof(double) * (size_t)n);
+    *cnt = n;
+    return 1;
+}
+
+/* Thesis units, converted to SI here; counts are checked together in plant_config_check. */
+static int key_diaphragm_breaks(file_ctx *fc, const char *section, const char *name, const char *value)
+{
+    plant_params *p = &fc->ctx->cfg->plant;
+    double tmp[PLANT_MAX_DIAPHRAGM_SEGMENTS];
+    int n;
+    if (parse_list(value, tmp, PLANT_MAX_DIAPHRAGM_SEGMENTS - 1, &n) != 0) {
+        fail(fc, section, name, value, "expected 1..%d pressures, psia, rising", PLANT_MAX_DIAPHRAGM_SEGMENTS - 1);
+        return 0;
+    }
+    for (int i = 0; i < n; i++) {
+        if (!(tmp[i] > 0.0 && tmp[i] < 300.0) || (i > 0 && !(tmp[i] > tmp[i - 1]))) {
+            fail(fc, section, name, value, "break %d: %g psia; breaks must rise, each in (0, 300) psia", i + 1, tmp[i]);
+            return 0;
+        }
+        p->diaphragm_break_pa[i] = tmp[i] * PLANT_PA_PER_PSI;
+    }
+    p->diaphragm_segments = n + 1;
+    return 1;
+}
+
+static int key_diaphragm_segments(file_ctx *fc, const char *section, const char *name, const char *value)
+{
+    static const double in3 = PLANT_M_PER_IN * PLANT_M_PER_IN * PLANT_M_PER_IN;
+    plant_params *p = &fc->ctx->cfg->plant;
+    int slope = strcmp(name, "diaphragm_slopes_in3_per_psi") == 0;
+    double tmp[PLANT_MAX_DIAPHRAGM_SEGMENTS];
+    int n;
+    if (parse_list(value, tmp, PLANT_MAX_DIAPHRAGM_SEGMENTS, &n) != 0) {
+        fail(fc, section, name, value, "expected 1..%d numbers, one per segment", PLANT_MAX_DIAPHRAGM_SEGMENTS);
+        return 0;
+    }
+    for (int i = 0; i < n; i++) {
+        if (slope && !(tmp[i] >= 0.0 && tmp[i] <= 1000.0)) {
+            fail(fc, section, name, value, "segment %d: %g in^3/psi out of range [0, 1000]", i + 1, tmp[i]);
+            return 0;
+        }
+        if (slope)
+            p->diaphragm_slope_m3_per_pa[i] = tmp[i] * in3 / PLANT_PA_PER_PSI;
+        else
+            p->diaphragm_intercept_m3[i] = tmp[i] * in3;
+    }
+    *(slope ? &p->diaphragm_slope_count : &p->diaphragm_intercept_count) = n;
+    return 1;
+}
+
+typedef int (*key_fn)(file_ctx *fc, const char *section, const char *name, const char *value);
+
+/* The key's hand reader (special_keys[i]), by position. */
+static const key_fn special_readers[] = {
+    key_include, key_name, key_acc_type, key_area_poly, key_area_poly,
+    key_diaphragm_breaks, key_diaphragm_segments, key_diaphragm_segments,
+};
+_Static_assert(sizeof special_readers / sizeof special_readers[0] == SPECIAL_COUNT, "one reader per special key");
 
 static size_t first_band_field(void)
 {
@@ -434,7 +433,7 @@ static int handler(void *user, const char *section, const char *name, const char
                 return 0;
             }
             fc->seen[slot] = 1;
-            return handle_special(fc, section, name, value) != 0 ? !ctx->failed : 0;
+            return special_readers[i](fc, section, name, value) != 0 ? !ctx->failed : 0;
         }
     }
     int band = band_index(section);
@@ -758,121 +757,4 @@ int plant_config_load(const char *path, plant_config *out, char *err, size_t err
     }
     free(ctx);
     return rc;
-}
-
-/* ---- the resolved config as JSON (leveler-sim --dump-config) ---- */
-
-/* The SI suffix of a unit kind: its entry with factor 1, not gauge; "" for plain numbers. */
-static const char *si_suffix(kind k)
-{
-    for (size_t i = 0; i < sizeof units / sizeof units[0]; i++)
-        if (units[i].k == k && units[i].factor == 1.0 && !units[i].gauge)
-            return units[i].suffix;
-    return "";
-}
-
-static void json_string(FILE *f, const char *s)
-{
-    fputc('"', f);
-    for (; *s; s++) {
-        unsigned char ch = (unsigned char)*s;
-        if (ch == '"' || ch == '\\')
-            fprintf(f, "\\%c", ch);
-        else if (ch < 0x20)
-            fprintf(f, "\\u%04x", ch);
-        else
-            fputc(ch, f);
-    }
-    fputc('"', f);
-}
-
-static void json_field(FILE *f, const field *fd, const char *base, const char *sep)
-{
-    const char *suffix = si_suffix(fd->k);
-    fprintf(f, "%s\"%s%s%s\": ", sep, fd->base, suffix[0] ? "_" : "", suffix);
-    const char *v = base + fd->offset;
-    if (fd->t == T_DOUBLE)
-        fprintf(f, "%.17g", *(const double *)v);
-    else if (fd->t == T_INT)
-        fprintf(f, "%d", *(const int *)v);
-    else
-        fprintf(f, "%u", (unsigned)*(const uint32_t *)v);
-}
-
-static void json_list(FILE *f, const char *key, const double *v, int n)
-{
-    fprintf(f, ", \"%s\": [", key);
-    for (int i = 0; i < n; i++)
-        fprintf(f, "%s%.17g", i ? ", " : "", v[i]);
-    fputc(']', f);
-}
-
-/* The hysteresis bands with the load range plant_band_for_load() gives each
- * (covers_below_n null: every heavier load). */
-static void json_bands(FILE *f, const plant_params *p)
-{
-    fprintf(f, "  \"hysteresis\": [");
-    for (int b = 0; b < p->band_count; b++) {
-        const plant_hysteresis_band *band = &p->bands[b];
-        double from = 0.0, below = band->load_below_n;
-        int last = 1;
-        for (int o = 0; o < p->band_count; o++) {
-            double other = p->bands[o].load_below_n;
-            if (other < band->load_below_n && other > from)
-                from = other;
-            if (other > band->load_below_n)
-                last = 0;
-        }
-        fprintf(f, "%s\n    {", b ? "," : "");
-        int n = 0;
-        for (size_t i = 0; i < FIELD_COUNT; i++)
-            if (strcmp(fields[i].section, "hysteresis") == 0)
-                json_field(f, &fields[i], (const char *)band, n++ ? ", " : "");
-        fprintf(f, ", \"covers_from_n\": %.17g, \"covers_below_n\": ", from);
-        if (last)
-            fprintf(f, "null}");
-        else
-            fprintf(f, "%.17g}", below);
-    }
-    fprintf(f, "\n  ]");
-}
-
-int plant_config_write_json(const plant_config *c, FILE *f)
-{
-    static const char *const acc_types[] = {"none", "tube", "diaphragm"};
-    const plant_params *p = &c->plant;
-    fprintf(f, "{\n  \"config\": {\"name\": ");
-    json_string(f, c->name);
-    fprintf(f, ", \"path\": ");
-    json_string(f, c->path);
-    fprintf(f, "},\n");
-    const char *open = NULL;
-    for (size_t i = 0; i < FIELD_COUNT; i++) {
-        const field *fd = &fields[i];
-        if (strcmp(fd->section, "hysteresis") == 0)
-            continue;
-        int first = !open || strcmp(open, fd->section) != 0;
-        if (first) {
-            if (open)
-                fprintf(f, "},\n");
-            fprintf(f, "  \"%s\": {", fd->section);
-            open = fd->section;
-        }
-        json_field(f, fd, (const char *)c, first ? "" : ", ");
-        int last = i + 1 == FIELD_COUNT || strcmp(fields[i + 1].section, fd->section) != 0;
-        if (last && strcmp(fd->section, "accumulator") == 0) { /* the keys read by hand */
-            fprintf(f, ", \"type\": \"%s\"", acc_types[p->acc_type]);
-            json_list(f, "diaphragm_breaks_pa", p->diaphragm_break_pa, p->diaphragm_segments - 1);
-            json_list(f, "diaphragm_slopes_m3_per_pa", p->diaphragm_slope_m3_per_pa, p->diaphragm_segments);
-            json_list(f, "diaphragm_intercepts_m3", p->diaphragm_intercept_m3, p->diaphragm_segments);
-        }
-        if (last && strcmp(fd->section, "spring") == 0) {
-            json_list(f, "area_cc1_poly_in2", p->area_cc1_in2, p->area_cc1_terms);
-            json_list(f, "area_cc2_poly_in2_per_in", p->area_cc2_in2_per_in, p->area_cc2_terms);
-        }
-    }
-    fprintf(f, "},\n");
-    json_bands(f, p);
-    fprintf(f, "\n}\n");
-    return ferror(f) ? -1 : 0;
 }
