@@ -413,18 +413,9 @@ static int check_given(const load_ctx *ctx, const char *path)
     return 0;
 }
 
-static int handler(void *user, const char *section, const char *name, const char *value)
+/* A special key (special_keys): -1 if name is not one, else handled (1 ok, 0 failed). */
+static int read_special(file_ctx *fc, const char *section, const char *name, const char *value)
 {
-    file_ctx *fc = user;
-    load_ctx *ctx = fc->ctx;
-    if (ctx->failed)
-        return 0;
-    fc->keys_seen++;
-    if (!is_known_section(section)) {
-        fail(fc, section, name, value, "unknown section [%s] (see docs/config-format.md)", section);
-        return 0;
-    }
-    /* special keys */
     for (size_t i = 0; i < SPECIAL_COUNT; i++) {
         if (strcmp(section, special_keys[i][0]) == 0 && strcmp(name, special_keys[i][1]) == 0) {
             size_t slot = FIELD_COUNT * PLANT_MAX_BANDS + i;
@@ -433,74 +424,100 @@ static int handler(void *user, const char *section, const char *name, const char
                 return 0;
             }
             fc->seen[slot] = 1;
-            return special_readers[i](fc, section, name, value) != 0 ? !ctx->failed : 0;
+            return special_readers[i](fc, section, name, value) != 0 ? !fc->ctx->failed : 0;
         }
     }
+    return -1;
+}
+
+/* Does name = f's base + one of its unit suffixes? 1 (with *u, NULL for plain
+ * numbers), 0 if not, -1 if the base matches but the suffix is not allowed. */
+static int match_field(const field *f, const char *name, const unit **u)
+{
+    size_t bl = strlen(f->base);
+    *u = NULL;
+    if (strncmp(name, f->base, bl) != 0)
+        return 0;
+    if (f->k == K_NONE || f->k == K_INT)
+        return name[bl] == 0;
+    if (name[bl] != '_')
+        return 0;
+    for (size_t j = 0; j < sizeof units / sizeof units[0]; j++)
+        if (units[j].k == f->k && strcmp(units[j].suffix, name + bl + 1) == 0)
+            *u = &units[j];
+    return *u ? 1 : -1;
+}
+
+/* Field i (of band, or -1) given as name = value in unit u: checked, converted, stored. */
+static int store_field(file_ctx *fc, size_t i, int band, const unit *u, const char *section, const char *name,
+                       const char *value)
+{
+    load_ctx *ctx = fc->ctx;
+    const field *f = &fields[i];
+    size_t slot = i * PLANT_MAX_BANDS + (size_t)(band >= 0 ? band : 0);
+    if (fc->seen[slot]) {
+        fail(fc, section, name, value, "%s given twice in this file (possibly under another unit)", f->base);
+        return 0;
+    }
+    fc->seen[slot] = 1;
+    double v;
+    if (parse_number(value, &v) != 0) {
+        fail(fc, section, name, value, "not a number");
+        return 0;
+    }
+    double factor = u ? u->factor : 1.0;
+    int gauge = u ? u->gauge : 0;
+    double off = gauge ? ctx->cfg->plant.ambient_pa : 0.0;
+    double si = v * factor + off;
+    if (si < f->min_si || si > f->max_si) {
+        fail(fc, section, name, value, "out of range [%.6g, %.6g] %s", (f->min_si - off) / factor,
+             (f->max_si - off) / factor, u ? u->suffix : "");
+        return 0;
+    }
+    if ((f->t == T_INT || f->t == T_U32) && v != floor(v)) {
+        fail(fc, section, name, value, "must be a whole number in [%.10g, %.10g]", f->min_si, f->max_si);
+        return 0;
+    }
+    char *dst = (band >= 0 ? (char *)&ctx->cfg->plant.bands[band] : (char *)ctx->cfg) + f->offset;
+    if (f->t == T_DOUBLE)
+        *(double *)dst = v * factor; /* gauge: ambient added at the end (it may come later) */
+    else if (f->t == T_INT)
+        *(int *)dst = (int)v;
+    else
+        *(uint32_t *)dst = (uint32_t)v;
+    ctx->gauge[slot] = gauge;
+    if (band >= 0) {
+        ctx->band_seen[band] = 1;
+        ctx->band_keys[band] |= 1u << (i - first_band_field());
+    }
+    if (strcmp(section, "controller") == 0 && strncmp(name, "band_", 5) == 0)
+        snprintf(ctx->edge_where, sizeof ctx->edge_where, "%s:%d", fc->path, fc->line);
+    return 1;
+}
+
+static int handler(void *user, const char *section, const char *name, const char *value)
+{
+    file_ctx *fc = user;
+    if (fc->ctx->failed)
+        return 0;
+    fc->keys_seen++;
+    if (!is_known_section(section)) {
+        fail(fc, section, name, value, "unknown section [%s] (see docs/config-format.md)", section);
+        return 0;
+    }
+    int special = read_special(fc, section, name, value);
+    if (special >= 0)
+        return special;
     int band = band_index(section);
     const char *fsection = band >= 0 ? "hysteresis" : section;
     int base_matched = -1;
     for (size_t i = 0; i < FIELD_COUNT; i++) {
-        const field *f = &fields[i];
-        if (strcmp(f->section, fsection) != 0)
-            continue;
-        size_t bl = strlen(f->base);
-        if (strncmp(name, f->base, bl) != 0)
-            continue;
-        const unit *u = NULL;
-        if (f->k == K_NONE || f->k == K_INT) {
-            if (name[bl] != 0)
-                continue;
-        } else {
-            if (name[bl] != '_')
-                continue;
-            for (size_t j = 0; j < sizeof units / sizeof units[0]; j++)
-                if (units[j].k == f->k && strcmp(units[j].suffix, name + bl + 1) == 0)
-                    u = &units[j];
-            if (!u) {
-                base_matched = (int)i;
-                continue;
-            }
-        }
-        size_t slot = i * PLANT_MAX_BANDS + (size_t)(band >= 0 ? band : 0);
-        if (fc->seen[slot]) {
-            fail(fc, section, name, value, "%s given twice in this file (possibly under another unit)", f->base);
-            return 0;
-        }
-        fc->seen[slot] = 1;
-        double v;
-        if (parse_number(value, &v) != 0) {
-            fail(fc, section, name, value, "not a number");
-            return 0;
-        }
-        double factor = u ? u->factor : 1.0;
-        int gauge = u ? u->gauge : 0;
-        double si = v * factor + (gauge ? ctx->cfg->plant.ambient_pa : 0.0);
-        if (si < f->min_si || si > f->max_si) {
-            double off = gauge ? ctx->cfg->plant.ambient_pa : 0.0;
-            fail(fc, section, name, value, "out of range [%.6g, %.6g] %s", (f->min_si - off) / factor,
-                 (f->max_si - off) / factor, u ? u->suffix : "");
-            return 0;
-        }
-        if ((f->t == T_INT || f->t == T_U32) && v != floor(v)) {
-            fail(fc, section, name, value, "must be a whole number in [%.10g, %.10g]", f->min_si, f->max_si);
-            return 0;
-        }
-        char *base = band >= 0 ? (char *)&ctx->cfg->plant.bands[band] : (char *)ctx->cfg;
-        void *dst = base + f->offset;
-        if (f->t == T_DOUBLE)
-            *(double *)dst = v * factor; /* gauge: ambient added at the end (it may come later) */
-        else if (f->t == T_INT)
-            *(int *)dst = (int)v;
-        else
-            *(uint32_t *)dst = (uint32_t)v;
-        ctx->gauge[slot] = gauge;
-        if (band >= 0) {
-            ctx->band_seen[band] = 1;
-            ctx->band_keys[band] |= 1u << (i - first_band_field());
-        }
-        if (strcmp(section, "controller") == 0 && strncmp(name, "band_", 5) == 0)
-            snprintf(ctx->edge_where, sizeof ctx->edge_where, "%s:%d", fc->path, fc->line);
-        return 1;
+        const unit *u;
+        int m = strcmp(fields[i].section, fsection) == 0 ? match_field(&fields[i], name, &u) : 0;
+        if (m > 0)
+            return store_field(fc, i, band, u, section, name, value);
+        if (m < 0)
+            base_matched = (int)i;
     }
     if (base_matched >= 0) {
         char list[256];
