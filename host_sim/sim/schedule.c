@@ -41,6 +41,40 @@ static int parse_double(const char *s, const char *e, double *out)
     return 0;
 }
 
+/* One data line "t_s,load_n" after n rows (the last at prev_t): 0, or -1 with err. */
+static int parse_row(char *p, const char *path, int lineno, size_t n, double prev_t, sim_load_step *row, char *err,
+                     size_t err_len)
+{
+    char *comma = strchr(p, ',');
+    double t, load;
+    if (!comma || strchr(comma + 1, ',')) {
+        snprintf(err, err_len, "%s:%d: expected two columns t_s,load_n", path, lineno);
+        return -1;
+    }
+    if (parse_double(p, comma, &t) != 0 || parse_double(comma + 1, p + strlen(p), &load) != 0) {
+        snprintf(err, err_len, "%s:%d: t_s and load_n must be numbers", path, lineno);
+        return -1;
+    }
+    if (n == 0 && t != 0.0) {
+        snprintf(err, err_len, "%s:%d: t_s: the first step must be at 0 s (got %g)", path, lineno, t);
+        return -1;
+    }
+    if (n > 0 && !(t > prev_t)) {
+        snprintf(err, err_len, "%s:%d: t_s: times must increase (%g after %g)", path, lineno, t, prev_t);
+        return -1;
+    }
+    if (t > 1e7) {
+        snprintf(err, err_len, "%s:%d: t_s: out of range [0, 1e7] s", path, lineno);
+        return -1;
+    }
+    if (load < 0.0 || load > 1e5) {
+        snprintf(err, err_len, "%s:%d: load_n: out of range [0, 100000] N", path, lineno);
+        return -1;
+    }
+    *row = (sim_load_step){t, load};
+    return 0;
+}
+
 int sim_schedule_load(const char *path, sim_load_step **steps, size_t *count, char *err, size_t err_len)
 {
     *steps = NULL;
@@ -54,7 +88,7 @@ int sim_schedule_load(const char *path, sim_load_step **steps, size_t *count, ch
     sim_load_step *v = malloc(cap * sizeof *v);
     char line[256];
     int lineno = 0, rc = 0;
-    while (v && fgets(line, sizeof line, f)) {
+    while (v && rc == 0 && fgets(line, sizeof line, f)) {
         lineno++;
         char *p = line;
         while (*p == ' ' || *p == '\t')
@@ -63,49 +97,17 @@ int sim_schedule_load(const char *path, sim_load_step **steps, size_t *count, ch
             continue;
         if (strncmp(p, "t_s,load_n", 10) == 0 && n == 0)
             continue;
-        char *comma = strchr(p, ',');
-        double t, load;
-        if (!comma || strchr(comma + 1, ',')) {
-            snprintf(err, err_len, "%s:%d: expected two columns t_s,load_n", path, lineno);
-            rc = -1;
-            break;
-        }
-        if (parse_double(p, comma, &t) != 0 || parse_double(comma + 1, p + strlen(p), &load) != 0) {
-            snprintf(err, err_len, "%s:%d: t_s and load_n must be numbers", path, lineno);
-            rc = -1;
-            break;
-        }
-        if (n == 0 && t != 0.0) {
-            snprintf(err, err_len, "%s:%d: t_s: the first step must be at 0 s (got %g)", path, lineno, t);
-            rc = -1;
-            break;
-        }
-        if (n > 0 && !(t > v[n - 1].t_s)) {
-            snprintf(err, err_len, "%s:%d: t_s: times must increase (%g after %g)", path, lineno, t, v[n - 1].t_s);
-            rc = -1;
-            break;
-        }
-        if (t > 1e7) {
-            snprintf(err, err_len, "%s:%d: t_s: out of range [0, 1e7] s", path, lineno);
-            rc = -1;
-            break;
-        }
-        if (load < 0.0 || load > 1e5) {
-            snprintf(err, err_len, "%s:%d: load_n: out of range [0, 100000] N", path, lineno);
-            rc = -1;
-            break;
-        }
-        if (n == cap) {
+        sim_load_step row;
+        rc = parse_row(p, path, lineno, n, n ? v[n - 1].t_s : 0.0, &row, err, err_len);
+        if (rc == 0 && n == cap) {
             cap *= 2;
             sim_load_step *nv = realloc(v, cap * sizeof *v);
-            if (!nv) {
+            if (!nv)
                 free(v);
-                v = NULL;
-                break;
-            }
             v = nv;
         }
-        v[n++] = (sim_load_step){t, load};
+        if (rc == 0 && v)
+            v[n++] = row;
     }
     fclose(f);
     if (!v) {

@@ -306,6 +306,55 @@ static void run_program(const char *config, int substeps, program_run *r)
 /* With the parameter-table values the program's loop, its own 0.01 s step
  * included, reproduces the published 900 lb figures: lowest 14.53 in, highest
  * 17.54 in. */
+/* The one scenario-to-load rule (stepper.h): the load over the tick from t is
+ * the last step at or before t + half a tick; a schedule file names its line. */
+static void test_schedule_rule_and_file_errors(void **state)
+{
+    (void)state;
+    plant_config cfg;
+    plant_config_defaults(&cfg);
+    sim_load_step steps[4];
+    double end_s;
+    size_t n = sim_schedule_from_config(&cfg, steps, &end_s);
+    assert_int_equal(n, 3);
+    assert_true(end_s == 55.0);
+    sim_schedule_cursor c = {steps, n, 0};
+    const double base = cfg.base_load_n, loaded = cfg.base_load_n + cfg.step_load_n;
+    assert_true(sim_schedule_load_at(&c, 0.0) == base);
+    assert_true(sim_schedule_load_at(&c, 4.99) == base);
+    assert_true(sim_schedule_load_at(&c, 4.996) == loaded); /* 5 s minus less than half a tick */
+    assert_true(sim_schedule_load_at(&c, 34.99) == loaded);
+    assert_true(sim_schedule_load_at(&c, 35.0) == base);
+    assert_true(sim_schedule_load_at(&c, 1e6) == base); /* past the end: the last load holds */
+
+    static const struct { const char *text, *words; } bad[] = {
+        {"t_s,load_n\n0,4003\n5,4892\n4,1\n", "bad.csv:4: t_s: times must increase"},
+        {"1,4003\n2,4003\n", "bad.csv:1: t_s: the first step must be at 0 s"},
+        {"0,4003\n", "bad.csv:1: need at least two rows"},
+        {"0,4003,1\n5,1\n", "bad.csv:1: expected two columns"},
+        {"0,4003\n5,x\n", "bad.csv:2: t_s and load_n must be numbers"},
+        {"0,4003\n5,-1\n", "bad.csv:2: load_n: out of range"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        sim_load_step *v = NULL;
+        size_t count = 0;
+        char err[512];
+        assert_int_equal(sim_schedule_load(write_file("bad.csv", bad[i].text), &v, &count, err, sizeof err), -1);
+        if (!strstr(err, bad[i].words))
+            fail_msg("%s: expected '%s'", err, bad[i].words);
+        assert_null(v);
+    }
+    sim_load_step *v = NULL;
+    size_t count = 0;
+    char err[512];
+    assert_int_equal(sim_schedule_load(write_file("ok.csv", "# loads\nt_s,load_n\n0,4003\n5,4892\n55,4003\n"), &v,
+                                       &count, err, sizeof err),
+                     0);
+    assert_int_equal(count, 3);
+    assert_true(v[1].t_s == 5.0 && v[1].load_n == 4892.0);
+    free(v);
+}
+
 static void test_program_controller_900(void **state)
 {
     (void)state;
@@ -423,6 +472,7 @@ int main(void)
         cmocka_unit_test(test_rk4_order),
         cmocka_unit_test(test_config_errors),
         cmocka_unit_test(test_config_units_and_include),
+        cmocka_unit_test(test_schedule_rule_and_file_errors),
         cmocka_unit_test(test_program_controller_900),
         cmocka_unit_test(test_firmware_equals_program_900),
         cmocka_unit_test(test_firmware_equals_program_1000),
