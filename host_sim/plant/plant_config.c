@@ -561,11 +561,10 @@ static int load_file(load_ctx *ctx, const char *path)
     return ctx->failed ? -1 : 0;
 }
 
-void plant_config_defaults(plant_config *c)
+/* The parameter table: gas, motor, compressor, valves, accumulator, spring. */
+static void defaults_gas_and_flow(plant_params *p)
 {
-    memset(c, 0, sizeof *c);
-    plant_params *p = &c->plant;
-    const double psi = PLANT_PA_PER_PSI, in = PLANT_M_PER_IN, lbf = PLANT_N_PER_LBF;
+    const double psi = PLANT_PA_PER_PSI;
     p->ambient_pa = 14.7 * psi;
     p->temperature_k = 535.0 * 5.0 / 9.0;
     p->gas_constant_j_per_kg_k = 640.08 * LBF_IN / (PLANT_KG_PER_LBM * 5.0 / 9.0);
@@ -597,6 +596,12 @@ void plant_config_defaults(plant_config *c)
     p->area_cc1_terms = 5;
     memcpy(p->area_cc2_in2_per_in, cc2, sizeof cc2);
     p->area_cc2_terms = 2;
+}
+
+/* Hysteresis lines (Appendix B, psig), platform and initial state. */
+static void defaults_bands_and_platform(plant_params *p)
+{
+    const double psi = PLANT_PA_PER_PSI, in = PLANT_M_PER_IN, lbf = PLANT_N_PER_LBF;
     static const double band_tab[4][4] = {
         {950, -3.43, 130.0, 11.0}, {1050, -3.67, 139.33, 10.5}, {1150, -3.5, 141.5, 10.5}, {1250, -3.67, 149.33, 10.5}};
     for (int i = 0; i < 4; i++) {
@@ -617,6 +622,12 @@ void plant_config_defaults(plant_config *c)
     p->init_p_pipe_pa = 89.0 * psi;
     p->init_p_spring_pa = 89.0 * psi;
     p->init_motor_speed_rad_per_s = 83.2649;
+}
+
+/* The diaphragm accumulator of figure 22. */
+static void defaults_diaphragm(plant_params *p)
+{
+    const double psi = PLANT_PA_PER_PSI, in = PLANT_M_PER_IN;
     /* diaphragm accumulator, figure 22 as Appendix B has it (psia -> in^3) */
     static const double breaks_psia[] = {40.0, 106.7, 112.7};
     static const double slopes[] = {0.0, 0.1546, 75.531097, 0.75};
@@ -629,6 +640,15 @@ void plant_config_defaults(plant_config *c)
         p->diaphragm_slope_m3_per_pa[i] = slopes[i] * in * in * in / psi;
         p->diaphragm_intercept_m3[i] = intercepts[i] * in * in * in;
     }
+}
+
+void plant_config_defaults(plant_config *c)
+{
+    memset(c, 0, sizeof *c);
+    defaults_gas_and_flow(&c->plant);
+    defaults_bands_and_platform(&c->plant);
+    defaults_diaphragm(&c->plant);
+    const double in = PLANT_M_PER_IN, lbf = PLANT_N_PER_LBF;
     c->init_compressor = 1; /* the program's motor := true; solenoid := true */
     c->init_spring_valve = 1;
     c->init_vent_valve = 0;
