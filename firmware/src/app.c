@@ -166,6 +166,12 @@ void leveler_app_report_tick_cycles(uint32_t cycles)
     }
 }
 
+void leveler_app_report_log(bool fault, uint32_t rows_dropped)
+{
+    g_status.log_fault = fault;
+    g_status.log_rows_dropped = rows_dropped;
+}
+
 void leveler_app_report_clock_fault(bool hse_failed)
 {
     g_status.clock_fault = hse_failed;

@@ -7,6 +7,12 @@
  * whole lines in RUNLOG_BUFFER_BYTES and writes them together. Either way no
  * stdio buffer is involved and only whole lines reach the file, so a reader
  * of a process stopped by SIGTERM sees whole lines.
+ * A line that cannot be written whole (ENOSPC, EIO, EFBIG past a file-size
+ * limit) is dropped whole: the file is truncated back to the end of the last
+ * complete line (files are opened O_APPEND, so the next write lands there),
+ * the row is counted in rows_dropped and the log is marked faulty until a
+ * line is written again, so the file always reads as whole lines and logging
+ * resumes by itself when space returns (a buffered log drops what it held).
  * Rotation: when the next line would push the current file past rotate_bytes,
  * the file is fsync'ed, path.(k) -> path.(k+1) for k = keep-1..1, path ->
  * path.1, and a fresh path starts with the same header and that line; path
@@ -41,6 +47,11 @@ struct runlog {
     size_t header_len;
     char *buf; /* buffered logs: whole lines not yet written */
     size_t buf_len;
+    unsigned long long buf_rows;      /* rows in buf */
+    unsigned long long rows_written;  /* rows in the file (buffered ones included) */
+    unsigned long long rows_dropped;
+    int fault;      /* the last row was dropped */
+    int needs_trim; /* a truncation back to the last complete line is still owed */
 };
 
 static int write_all(int fd, const char *buf, size_t len)
@@ -58,6 +69,19 @@ static int write_all(int fd, const char *buf, size_t len)
     return 0;
 }
 
+/* Whatever part of a failed write reached the file goes again; 0 once the
+ * file ends at its last complete line. */
+static int trim_torn_tail(runlog *log)
+{
+    if (!log->needs_trim)
+        return 0;
+    if (log->is_stdout || ftruncate(log->fd, (off_t)(log->file_bytes - log->buf_len)) == 0) {
+        log->needs_trim = 0;
+        return 0;
+    }
+    return -1;
+}
+
 /* A fatal signal can cut a large write() to a file short at a page boundary,
  * so the buffer goes out with signals held: a SIGTERM then lands after it. */
 static int flush_buffer(runlog *log)
@@ -67,15 +91,28 @@ static int flush_buffer(runlog *log)
     sigset_t all, old;
     sigfillset(&all);
     sigprocmask(SIG_BLOCK, &all, &old);
-    int rc = write_all(log->fd, log->buf, log->buf_len);
+    int rc = trim_torn_tail(log) == 0 ? write_all(log->fd, log->buf, log->buf_len) : -1;
     sigprocmask(SIG_SETMASK, &old, NULL);
+    if (rc != 0) { /* the buffered rows are dropped whole and counted */
+        int e = errno;
+        log->file_bytes -= log->buf_len;
+        log->rows_written -= log->buf_rows;
+        log->rows_dropped += log->buf_rows;
+        log->fault = 1;
+        log->needs_trim = 1;
+        log->buf_len = 0;
+        trim_torn_tail(log);
+        errno = e;
+    }
     log->buf_len = 0;
+    log->buf_rows = 0;
     return rc;
 }
 
+/* O_APPEND: after a torn line is cut off, the next write lands at the new end. */
 static int open_fresh(runlog *log)
 {
-    log->fd = open(log->path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    log->fd = open(log->path, O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
     if (log->fd < 0)
         return -1;
     log->file_bytes = 0;
@@ -106,7 +143,7 @@ static int rotate(runlog *log, const char *line, size_t len)
     if (tmp == NULL || from == NULL || to == NULL)
         goto out;
     snprintf(tmp, cap, "%s.tmp", log->path);
-    fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
     if (fd < 0 || write_all(fd, log->header, log->header_len) != 0 || write_all(fd, line, len) != 0)
         goto out;
     if (log->keep_files > 0) {
@@ -251,6 +288,34 @@ static void put_flag(line_buffer *line, int v)
     }
 }
 
+/* One formatted line into the file, the buffer or the next rotated file;
+ * -1 if it did not get there whole (the file then ends at its last whole line). */
+static int store_line(runlog *log, const char *line, size_t len)
+{
+    if (log->rotate_bytes > 0 && log->file_bytes > log->header_len && log->file_bytes + len > log->rotate_bytes)
+        return rotate(log, line, len); /* the line starts the next file; on failure the old one stays */
+    if (log->buf) {
+        if (log->buf_len + len > RUNLOG_BUFFER_BYTES)
+            flush_buffer(log); /* on failure what it held is dropped and counted; this line is not in it */
+        memcpy(log->buf + log->buf_len, line, len);
+        log->buf_len += len;
+        log->buf_rows++;
+        log->file_bytes += len;
+        return 0;
+    }
+    if (trim_torn_tail(log) != 0)
+        return -1;
+    if (write_all(log->fd, line, len) != 0) {
+        int e = errno;
+        log->needs_trim = 1;
+        trim_torn_tail(log);
+        errno = e;
+        return -1;
+    }
+    log->file_bytes += len;
+    return 0;
+}
+
 int runlog_write(runlog *log, const runlog_row *row)
 {
     if (log == NULL || row == NULL || log->fd < 0) {
@@ -271,22 +336,24 @@ int runlog_write(runlog *log, const runlog_row *row)
     append(&line, "\n", 1);
     if (line.overflow) {
         errno = EOVERFLOW;
+        log->rows_dropped++;
+        log->fault = 1;
         return -1;
     }
-
-    if (log->rotate_bytes > 0 && log->file_bytes > log->header_len &&
-        log->file_bytes + line.len > log->rotate_bytes)
-        return rotate(log, line.buf, line.len); /* the line starts the next file */
-    if (log->buf) {
-        if (log->buf_len + line.len > RUNLOG_BUFFER_BYTES && flush_buffer(log) != 0)
-            return -1;
-        memcpy(log->buf + log->buf_len, line.buf, line.len);
-        log->buf_len += line.len;
-    } else if (write_all(log->fd, line.buf, line.len) != 0) {
+    if (store_line(log, line.buf, line.len) != 0) {
+        log->rows_dropped++;
+        log->fault = 1;
         return -1;
     }
-    log->file_bytes += line.len;
+    log->rows_written++;
+    log->fault = 0;
     return 0;
+}
+
+runlog_stats runlog_get_stats(const runlog *log)
+{
+    runlog_stats st = {.rows_written = log->rows_written, .rows_dropped = log->rows_dropped, .fault = log->fault};
+    return st;
 }
 
 /* fsync where it means something: pipes, terminals and /dev/null cannot be

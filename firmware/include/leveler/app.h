@@ -29,5 +29,6 @@ void leveler_app_report_tick_overrun(void);            /* rig: a deadline was mi
 void leveler_app_report_tick_cycles(uint32_t cycles);  /* board: DWT cycles of one tick; worst kept */
 void leveler_app_report_clock_fault(bool hse_failed);  /* board: fell back to HSI */
 void leveler_app_report_reset_cause(bool watchdog);     /* board: the last reset came from the watchdog */
+void leveler_app_report_log(bool fault, uint32_t rows_dropped); /* rig: run-log health */
 
 #endif /* LEVELER_APP_H */

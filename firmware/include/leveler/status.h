@@ -54,6 +54,7 @@ typedef struct {
     uint32_t tick_cycles_worst;
     uint16_t firmware_version;
     uint16_t raw_counts[HAL_ADC_COUNT];
+    uint32_t log_rows_dropped; /* Linux rig: run-log rows not written */
     bool compressor_on;
     bool spring_valve_open;
     bool vent_valve_open;
@@ -63,6 +64,7 @@ typedef struct {
     bool sensors_valid;
     bool clock_fault;
     bool watchdog_reset;
+    bool log_fault;            /* Linux rig: the last run-log row could not be written */
 } leveler_status;
 
 typedef struct {

@@ -10,7 +10,9 @@
  * Lines are written whole, so a process stopped by SIGTERM leaves no torn
  * line: one write per line with fsync on rotation and close (the rig), or
  * whole lines collected in a 64 KiB buffer (buffered: the simulator).
- * Optional rotation by size.
+ * A line the disk refuses (full, I/O error, file-size limit) is dropped whole
+ * and counted; the file is cut back to its last complete line. Optional
+ * rotation by size.
  */
 #ifndef LEVELER_RUNLOG_H
 #define LEVELER_RUNLOG_H
@@ -45,8 +47,16 @@ typedef struct runlog runlog;
 
 /* NULL on failure, with a message naming the path in err. */
 runlog *runlog_open(const runlog_options *options, char *err, size_t err_len);
-/* 0 on success, -1 on an I/O error (errno set). */
+/* 0 on success, -1 when the row was dropped (errno set; the file still ends
+ * with a complete line). */
 int runlog_write(runlog *log, const runlog_row *row);
+
+typedef struct {
+    unsigned long long rows_written;  /* since open (rotated files and the buffer included) */
+    unsigned long long rows_dropped;
+    int fault; /* the last row was dropped */
+} runlog_stats;
+runlog_stats runlog_get_stats(const runlog *log);
 /* Flush, fsync (line-buffered logs) and close. 0 on success. */
 int runlog_close(runlog *log);
 
