@@ -27,9 +27,10 @@ typedef struct rig_output_backend {
 /* libgpiod: requests every configured line as an output, already de-energised. */
 int rig_gpiod_open(const rig_config *cfg, rig_output_backend *out, char *err, size_t err_len);
 
-struct _modbus;
-/* Coils on an open Modbus connection (not owned); writes all coils off first. */
-int rig_modbus_outputs_open(const rig_config *cfg, struct _modbus *ctx, rig_output_backend *out, char *err,
+struct rig_link;
+/* Coils over the module link (not owned); writes all coils off first, then
+ * the module's communication watchdog time when [outputs] watchdog_ms is set. */
+int rig_modbus_outputs_open(const rig_config *cfg, struct rig_link *link, rig_output_backend *out, char *err,
                             size_t err_len);
 
 #endif

@@ -5,11 +5,14 @@
 #include <errno.h>
 #include <stdarg.h>
 #include <ini.h>
+#include <arpa/inet.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+
+#include "ini_guard.h"
 
 const char *const rig_channel_names[HAL_ADC_COUNT] = {"height", "p_spring", "p_pipe", "p_acc"};
 const char *const rig_output_names[HAL_OUT_COUNT] = {"compressor", "spring_valve", "vent_valve", "acc_valve",
@@ -60,6 +63,7 @@ void rig_config_defaults(rig_config *cfg)
     cfg->supervision_port = 1502;
     cfg->read_only = false;
     cfg->idle_timeout_ms = 60000;
+    cfg->request_timeout_ms = 1000;
     cfg->max_clients = 4;
     cfg->log_rotate_bytes = 0;
     cfg->log_keep_files = 5;
@@ -67,25 +71,14 @@ void rig_config_defaults(rig_config *cfg)
 }
 
 typedef struct {
-    FILE *file;
-    unsigned line;         /* line the handler is looking at */
-    const char *path;
+    ini_guard guard;       /* the file, its real line numbers, repeated keys */
     rig_config *cfg;
     char *err;
     size_t err_len;
     int failed;
     bool seen_channel[HAL_ADC_COUNT];
+    bool seen_watchdog_register;
 } parse_state;
-
-/* inih reads one line per call; counting here gives the handler its line number. */
-static char *counting_reader(char *str, int num, void *stream)
-{
-    parse_state *st = stream;
-    char *r = fgets(str, num, st->file);
-    if (r != NULL)
-        st->line++;
-    return r;
-}
 
 __attribute__((format(printf, 4, 5)))
 static int fail(parse_state *st, const char *section, const char *key, const char *fmt, ...)
@@ -93,7 +86,7 @@ static int fail(parse_state *st, const char *section, const char *key, const cha
     if (st->failed)
         return 0;
     st->failed = 1;
-    int n = snprintf(st->err, st->err_len, "%s:%u: [%s] %s: ", st->path, st->line, section, key);
+    int n = snprintf(st->err, st->err_len, "%s:%u: [%s] %s: ", st->guard.path, st->guard.line, section, key);
     if (n >= 0 && (size_t)n < st->err_len) {
         va_list ap;
         va_start(ap, fmt);
@@ -103,14 +96,18 @@ static int fail(parse_state *st, const char *section, const char *key, const cha
     return 0;
 }
 
+/* Decimal only (a leading 0 is refused: 0777 is neither 777 nor octal 511 here). */
 static int parse_int(parse_state *st, const char *section, const char *key, const char *value,
                      long long lo, long long hi, long long *out)
 {
     char *end;
     errno = 0;
-    long long v = strtoll(value, &end, 0);
-    if (end == value || *end != '\0' || errno == ERANGE)
-        return fail(st, section, key, "'%s' is not an integer (allowed %lld..%lld)", value, lo, hi);
+    const char *digits = value + (value[0] == '-' || value[0] == '+');
+    long long v = strtoll(value, &end, 10);
+    if (end == value || *end != '\0' || errno == ERANGE || !(digits[0] >= '0' && digits[0] <= '9'))
+        return fail(st, section, key, "'%s' is not an integer (decimal, allowed %lld..%lld)", value, lo, hi);
+    if (digits[0] == '0' && digits[1] != '\0')
+        return fail(st, section, key, "'%s': leading zeros are not allowed (decimal only)", value);
     if (v < lo || v > hi)
         return fail(st, section, key, "%lld is out of range (allowed %lld..%lld)", v, lo, hi);
     *out = v;
@@ -146,8 +143,64 @@ static int parse_text(parse_state *st, const char *section, const char *key, con
 {
     if (strlen(value) >= cap)
         return fail(st, section, key, "longer than %zu characters", cap - 1);
+    if (!ini_utf8_valid(value))
+        return fail(st, section, key, "not valid UTF-8");
     memcpy(out, value, strlen(value) + 1);
     return 1;
+}
+
+/* One of names[] (a NULL-terminated list) -> its index in *out. */
+static int parse_choice(parse_state *st, const char *section, const char *key, const char *value,
+                        const char *const names[], int *out)
+{
+    char allowed[128] = "";
+    for (int i = 0; names[i]; i++) {
+        if (!strcmp(value, names[i])) {
+            *out = i;
+            return 1;
+        }
+        size_t used = strlen(allowed);
+        snprintf(allowed + used, sizeof allowed - used, "%s%s", i ? ", " : "", names[i]);
+    }
+    return fail(st, section, key, "'%s' is not one of %s", value, allowed);
+}
+
+/* A numeric IPv4 or IPv6 address, or localhost (= 127.0.0.1), into out (canonical text).
+ * inet_pton refuses zero-padded IPv4 parts, so 0127.0.0.1 is an error, not octal. */
+int rig_parse_address(const char *value, char *out, size_t cap)
+{
+    unsigned char bin[16];
+    int af = inet_pton(AF_INET, value, bin) == 1 ? AF_INET : inet_pton(AF_INET6, value, bin) == 1 ? AF_INET6 : 0;
+    if (!strcmp(value, "localhost") && inet_pton(AF_INET, "127.0.0.1", bin) == 1)
+        af = AF_INET;
+    if (af == 0 || inet_ntop(af, bin, out, (socklen_t)cap) == NULL)
+        return -1;
+    return 0;
+}
+
+static int parse_address(parse_state *st, const char *section, const char *key, const char *value, char *out,
+                         size_t cap)
+{
+    if (rig_parse_address(value, out, cap) != 0)
+        return fail(st, section, key,
+                    "'%s' is not a numeric IPv4 or IPv6 address (e.g. 127.0.0.1, ::1, 0.0.0.0; localhost; "
+                    "no leading zeros)",
+                    value);
+    return 1;
+}
+
+/* The module's host: an address as above, or a DNS name (resolved when connecting). */
+static int parse_host(parse_state *st, const char *section, const char *key, const char *value, char *out,
+                      size_t cap)
+{
+    if (rig_parse_address(value, out, cap) == 0)
+        return 1;
+    bool name = value[0] != '\0' && strspn(value, "0123456789.") != strlen(value) &&
+                strspn(value, "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789.-") == strlen(value);
+    if (!name)
+        return fail(st, section, key, "'%s' is neither a numeric IPv4/IPv6 address (no leading zeros) nor a host name",
+                    value);
+    return parse_text(st, section, key, value, out, cap);
 }
 
 #define INT_FIELD(field, lo, hi)                                                    \
@@ -159,20 +212,23 @@ static int parse_text(parse_state *st, const char *section, const char *key, con
         return 1;                                                                   \
     } while (0)
 
+#define CHOICE_FIELD(field, type, ...)                                              \
+    do {                                                                            \
+        static const char *const names_[] = {__VA_ARGS__, NULL};                    \
+        int i_;                                                                     \
+        if (!parse_choice(st, section, key, value, names_, &i_))                    \
+            return 0;                                                               \
+        (field) = (type)i_;                                                         \
+        return 1;                                                                   \
+    } while (0)
+
 static int channel_key(parse_state *st, rig_channel *ch, const char *section, const char *key,
                        const char *value, double out_lo, double out_hi)
 {
     if (!strcmp(key, "enabled"))
         return parse_bool(st, section, key, value, &ch->enabled);
-    if (!strcmp(key, "table")) {
-        if (!strcmp(value, "input"))
-            ch->table = RIG_TABLE_INPUT;
-        else if (!strcmp(value, "holding"))
-            ch->table = RIG_TABLE_HOLDING;
-        else
-            return fail(st, section, key, "'%s' is not one of input, holding", value);
-        return 1;
-    }
+    if (!strcmp(key, "table"))
+        CHOICE_FIELD(ch->table, rig_module_table, "input", "holding");
     if (!strcmp(key, "register"))
         INT_FIELD(ch->address, 0, 65535);
     if (!strcmp(key, "signed"))
@@ -190,174 +246,216 @@ static int channel_key(parse_state *st, rig_channel *ch, const char *section, co
     return fail(st, section, key, "unknown key");
 }
 
+static int rig_key(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    if (!strcmp(key, "name"))
+        return parse_text(st, section, key, value, cfg->name, sizeof cfg->name);
+    if (!strcmp(key, "clock"))
+        CHOICE_FIELD(cfg->clock, rig_clock, "monotonic", "lockstep");
+    if (!strcmp(key, "run_seconds"))
+        return parse_double(st, section, key, value, 0, 1e9, &cfg->run_seconds);
+    if (!strcmp(key, "lockstep_time_register"))
+        INT_FIELD(cfg->lockstep_time_register, 0, 65534);
+    if (!strcmp(key, "lockstep_step_register"))
+        INT_FIELD(cfg->lockstep_step_register, 0, 65535);
+    return fail(st, section, key, "unknown key");
+}
+
+static int sensors_key(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    if (!strcmp(key, "transport"))
+        CHOICE_FIELD(cfg->transport, rig_transport, "rtu", "tcp");
+    if (!strcmp(key, "device"))
+        return parse_text(st, section, key, value, cfg->device, sizeof cfg->device);
+    if (!strcmp(key, "baud"))
+        INT_FIELD(cfg->baud, 300, 4000000);
+    if (!strcmp(key, "parity")) {
+        if (strlen(value) != 1 || !strchr("NEO", value[0]))
+            return fail(st, section, key, "'%s' is not one of N, E, O", value);
+        cfg->parity = value[0];
+        return 1;
+    }
+    if (!strcmp(key, "data_bits"))
+        INT_FIELD(cfg->data_bits, 5, 8);
+    if (!strcmp(key, "stop_bits"))
+        INT_FIELD(cfg->stop_bits, 1, 2);
+    if (!strcmp(key, "host"))
+        return parse_host(st, section, key, value, cfg->host, sizeof cfg->host);
+    if (!strcmp(key, "port"))
+        INT_FIELD(cfg->port, 1, 65535);
+    if (!strcmp(key, "slave"))
+        INT_FIELD(cfg->slave, 0, 247);
+    if (!strcmp(key, "timeout_ms"))
+        INT_FIELD(cfg->timeout_ms, 1, 10000);
+    return fail(st, section, key, "unknown key");
+}
+
+static int sensor_section(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    const char *which = section + strlen("sensor.");
+    for (int c = 0; c < HAL_ADC_COUNT; c++) {
+        if (!strcmp(which, rig_channel_names[c])) {
+            if (!st->seen_channel[c]) {
+                /* A channel section present in the file is on unless it says otherwise. */
+                st->seen_channel[c] = true;
+                cfg->channel[c].enabled = true;
+            }
+            return channel_key(st, &cfg->channel[c], section, key, value, 0, HAL_ADC_MAX_COUNTS);
+        }
+    }
+    if (!strcmp(which, "load")) {
+        cfg->load.enabled = true;
+        return channel_key(st, &cfg->load, section, key, value, -1e6, 1e6);
+    }
+    return fail(st, section, key, "unknown sensor (allowed height, p_spring, p_pipe, p_acc, load)");
+}
+
+static int outputs_key(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    if (!strcmp(key, "backend"))
+        CHOICE_FIELD(cfg->outputs, rig_output_kind, "gpiod", "modbus");
+    if (!strcmp(key, "consumer"))
+        return parse_text(st, section, key, value, cfg->consumer, sizeof cfg->consumer);
+    if (!strcmp(key, "watchdog_ms"))
+        INT_FIELD(cfg->output_watchdog_ms, 0, 65535);
+    if (!strcmp(key, "watchdog_register")) {
+        st->seen_watchdog_register = true;
+        INT_FIELD(cfg->output_watchdog_register, 0, 65535);
+    }
+    return fail(st, section, key, "unknown key");
+}
+
+static int output_section(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    const char *which = section + strlen("output.");
+    for (int o = 0; o < HAL_OUT_COUNT; o++) {
+        if (strcmp(which, rig_output_names[o]))
+            continue;
+        rig_output_pin *pin = &cfg->pin[o];
+        pin->configured = true;
+        if (!strcmp(key, "chip"))
+            return parse_text(st, section, key, value, pin->chip, sizeof pin->chip);
+        if (!strcmp(key, "line"))
+            INT_FIELD(pin->line, 0, 65535);
+        if (!strcmp(key, "active_low"))
+            return parse_bool(st, section, key, value, &pin->active_low);
+        if (!strcmp(key, "coil"))
+            INT_FIELD(pin->coil, 0, 65535);
+        return fail(st, section, key, "unknown key");
+    }
+    return fail(st, section, key, "unknown output (allowed compressor, spring_valve, vent_valve, acc_valve, status_led)");
+}
+
+/* "a, b, c": each a numeric address (as [supervision] address). */
+static int parse_writers(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    char list[RIG_TEXT_MAX * 4];
+    snprintf(list, sizeof list, "%s", value);
+    cfg->writer_count = 0;
+    for (char *save = NULL, *tok = strtok_r(list, ", \t", &save); tok; tok = strtok_r(NULL, ", \t", &save)) {
+        if (cfg->writer_count == RIG_MAX_WRITERS)
+            return fail(st, section, key, "more than %d addresses", RIG_MAX_WRITERS);
+        if (!parse_address(st, section, key, tok, cfg->writers[cfg->writer_count], sizeof cfg->writers[0]))
+            return 0;
+        cfg->writer_count++;
+    }
+    if (cfg->writer_count == 0)
+        return fail(st, section, key, "empty (leave the key out to let every client write)");
+    return 1;
+}
+
+static int supervision_key(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    if (!strcmp(key, "enabled"))
+        return parse_bool(st, section, key, value, &cfg->supervision_enabled);
+    if (!strcmp(key, "address"))
+        return parse_address(st, section, key, value, cfg->supervision_address, sizeof cfg->supervision_address);
+    if (!strcmp(key, "port"))
+        INT_FIELD(cfg->supervision_port, 0, 65535);
+    if (!strcmp(key, "port_file"))
+        return parse_text(st, section, key, value, cfg->supervision_port_file, sizeof cfg->supervision_port_file);
+    if (!strcmp(key, "read_only"))
+        return parse_bool(st, section, key, value, &cfg->read_only);
+    if (!strcmp(key, "writers"))
+        return parse_writers(st, cfg, section, key, value);
+    if (!strcmp(key, "idle_timeout_s")) {
+        long long v;
+        if (!parse_int(st, section, key, value, 1, 86400, &v))
+            return 0;
+        cfg->idle_timeout_ms = (uint32_t)(v * 1000);
+        return 1;
+    }
+    if (!strcmp(key, "idle_timeout_ms"))
+        INT_FIELD(cfg->idle_timeout_ms, 10, 86400000);
+    if (!strcmp(key, "request_timeout_ms"))
+        INT_FIELD(cfg->request_timeout_ms, 10, 60000);
+    if (!strcmp(key, "max_clients"))
+        INT_FIELD(cfg->max_clients, 1, 64);
+    return fail(st, section, key, "unknown key");
+}
+
+static int log_key(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    if (!strcmp(key, "path"))
+        return parse_text(st, section, key, value, cfg->log_path, sizeof cfg->log_path);
+    if (!strcmp(key, "rotate_bytes"))
+        INT_FIELD(cfg->log_rotate_bytes, 0, 1LL << 40);
+    if (!strcmp(key, "keep_files"))
+        INT_FIELD(cfg->log_keep_files, 0, 1000);
+    if (!strcmp(key, "load_n"))
+        return parse_double(st, section, key, value, 0, 1e6, &cfg->log_load_n);
+    return fail(st, section, key, "unknown key");
+}
+
 static int handler(void *user, const char *section, const char *key, const char *value)
 {
     parse_state *st = user;
     rig_config *cfg = st->cfg;
     if (st->failed)
         return 0;
-
-    if (!strcmp(section, "rig")) {
-        if (!strcmp(key, "name"))
-            return parse_text(st, section, key, value, cfg->name, sizeof cfg->name);
-        if (!strcmp(key, "clock")) {
-            if (!strcmp(value, "monotonic"))
-                cfg->clock = RIG_CLOCK_MONOTONIC;
-            else if (!strcmp(value, "lockstep"))
-                cfg->clock = RIG_CLOCK_LOCKSTEP;
-            else
-                return fail(st, section, key, "'%s' is not one of monotonic, lockstep", value);
-            return 1;
-        }
-        if (!strcmp(key, "run_seconds"))
-            return parse_double(st, section, key, value, 0, 1e9, &cfg->run_seconds);
-        if (!strcmp(key, "lockstep_time_register"))
-            INT_FIELD(cfg->lockstep_time_register, 0, 65534);
-        if (!strcmp(key, "lockstep_step_register"))
-            INT_FIELD(cfg->lockstep_step_register, 0, 65535);
-        return fail(st, section, key, "unknown key");
+    if (ini_guard_key(&st->guard, section, key, st->err, st->err_len) != 0) {
+        st->failed = 1;
+        return 0;
     }
-    if (!strcmp(section, "sensors")) {
-        if (!strcmp(key, "transport")) {
-            if (!strcmp(value, "rtu"))
-                cfg->transport = RIG_TRANSPORT_RTU;
-            else if (!strcmp(value, "tcp"))
-                cfg->transport = RIG_TRANSPORT_TCP;
-            else
-                return fail(st, section, key, "'%s' is not one of rtu, tcp", value);
-            return 1;
-        }
-        if (!strcmp(key, "device"))
-            return parse_text(st, section, key, value, cfg->device, sizeof cfg->device);
-        if (!strcmp(key, "baud"))
-            INT_FIELD(cfg->baud, 300, 4000000);
-        if (!strcmp(key, "parity")) {
-            if (strlen(value) != 1 || !strchr("NEO", value[0]))
-                return fail(st, section, key, "'%s' is not one of N, E, O", value);
-            cfg->parity = value[0];
-            return 1;
-        }
-        if (!strcmp(key, "data_bits"))
-            INT_FIELD(cfg->data_bits, 5, 8);
-        if (!strcmp(key, "stop_bits"))
-            INT_FIELD(cfg->stop_bits, 1, 2);
-        if (!strcmp(key, "host"))
-            return parse_text(st, section, key, value, cfg->host, sizeof cfg->host);
-        if (!strcmp(key, "port"))
-            INT_FIELD(cfg->port, 1, 65535);
-        if (!strcmp(key, "slave"))
-            INT_FIELD(cfg->slave, 0, 247);
-        if (!strcmp(key, "timeout_ms"))
-            INT_FIELD(cfg->timeout_ms, 1, 10000);
-        return fail(st, section, key, "unknown key");
-    }
-    if (!strncmp(section, "sensor.", 7)) {
-        const char *which = section + 7;
-        for (int c = 0; c < HAL_ADC_COUNT; c++) {
-            if (!strcmp(which, rig_channel_names[c])) {
-                if (!st->seen_channel[c]) {
-                    /* A channel section present in the file is on unless it says otherwise. */
-                    st->seen_channel[c] = true;
-                    cfg->channel[c].enabled = true;
-                }
-                return channel_key(st, &cfg->channel[c], section, key, value, 0, HAL_ADC_MAX_COUNTS);
-            }
-        }
-        if (!strcmp(which, "load")) {
-            cfg->load.enabled = true;
-            return channel_key(st, &cfg->load, section, key, value, -1e6, 1e6);
-        }
-        return fail(st, section, key, "unknown sensor (allowed height, p_spring, p_pipe, p_acc, load)");
-    }
-    if (!strcmp(section, "outputs")) {
-        if (!strcmp(key, "backend")) {
-            if (!strcmp(value, "gpiod"))
-                cfg->outputs = RIG_OUTPUTS_GPIOD;
-            else if (!strcmp(value, "modbus"))
-                cfg->outputs = RIG_OUTPUTS_MODBUS;
-            else
-                return fail(st, section, key, "'%s' is not one of gpiod, modbus", value);
-            return 1;
-        }
-        if (!strcmp(key, "consumer"))
-            return parse_text(st, section, key, value, cfg->consumer, sizeof cfg->consumer);
-        return fail(st, section, key, "unknown key");
-    }
-    if (!strncmp(section, "output.", 7)) {
-        const char *which = section + 7;
-        for (int o = 0; o < HAL_OUT_COUNT; o++) {
-            if (strcmp(which, rig_output_names[o]))
-                continue;
-            rig_output_pin *pin = &cfg->pin[o];
-            pin->configured = true;
-            if (!strcmp(key, "chip"))
-                return parse_text(st, section, key, value, pin->chip, sizeof pin->chip);
-            if (!strcmp(key, "line"))
-                INT_FIELD(pin->line, 0, 65535);
-            if (!strcmp(key, "active_low"))
-                return parse_bool(st, section, key, value, &pin->active_low);
-            if (!strcmp(key, "coil"))
-                INT_FIELD(pin->coil, 0, 65535);
-            return fail(st, section, key, "unknown key");
-        }
-        return fail(st, section, key,
-                    "unknown output (allowed compressor, spring_valve, vent_valve, acc_valve, status_led)");
-    }
-    if (!strcmp(section, "supervision")) {
-        if (!strcmp(key, "enabled"))
-            return parse_bool(st, section, key, value, &cfg->supervision_enabled);
-        if (!strcmp(key, "address"))
-            return parse_text(st, section, key, value, cfg->supervision_address, sizeof cfg->supervision_address);
-        if (!strcmp(key, "port"))
-            INT_FIELD(cfg->supervision_port, 0, 65535);
-        if (!strcmp(key, "port_file"))
-            return parse_text(st, section, key, value, cfg->supervision_port_file, sizeof cfg->supervision_port_file);
-        if (!strcmp(key, "read_only"))
-            return parse_bool(st, section, key, value, &cfg->read_only);
-        if (!strcmp(key, "idle_timeout_s")) {
-            long long v;
-            if (!parse_int(st, section, key, value, 1, 86400, &v))
-                return 0;
-            cfg->idle_timeout_ms = (uint32_t)(v * 1000);
-            return 1;
-        }
-        if (!strcmp(key, "idle_timeout_ms"))
-            INT_FIELD(cfg->idle_timeout_ms, 10, 86400000);
-        if (!strcmp(key, "max_clients"))
-            INT_FIELD(cfg->max_clients, 1, 64);
-        return fail(st, section, key, "unknown key");
-    }
-    if (!strcmp(section, "log")) {
-        if (!strcmp(key, "path"))
-            return parse_text(st, section, key, value, cfg->log_path, sizeof cfg->log_path);
-        if (!strcmp(key, "rotate_bytes"))
-            INT_FIELD(cfg->log_rotate_bytes, 0, 1LL << 40);
-        if (!strcmp(key, "keep_files"))
-            INT_FIELD(cfg->log_keep_files, 0, 1000);
-        if (!strcmp(key, "load_n"))
-            return parse_double(st, section, key, value, 0, 1e6, &cfg->log_load_n);
-        return fail(st, section, key, "unknown key");
+    static const struct {
+        const char *name;
+        bool prefix;
+        int (*fn)(parse_state *, rig_config *, const char *, const char *, const char *);
+    } sections[] = {
+        {"rig", false, rig_key},           {"sensors", false, sensors_key},         {"sensor.", true, sensor_section},
+        {"outputs", false, outputs_key},   {"output.", true, output_section},       {"supervision", false, supervision_key},
+        {"log", false, log_key},
+    };
+    for (size_t i = 0; i < sizeof sections / sizeof sections[0]; i++) {
+        bool match = sections[i].prefix ? !strncmp(section, sections[i].name, strlen(sections[i].name))
+                                        : !strcmp(section, sections[i].name);
+        if (match)
+            return sections[i].fn(st, cfg, section, key, value);
     }
     return fail(st, section, key, "unknown section");
 }
 
+static int check_whole(const char *path, const rig_config *cfg, bool seen_watchdog_register, char *err,
+                       size_t err_len);
+
 int rig_config_load(const char *path, rig_config *cfg, char *err, size_t err_len)
 {
-    parse_state st = {.path = path, .cfg = cfg, .err = err, .err_len = err_len};
-    st.file = fopen(path, "r");
-    if (st.file == NULL) {
-        snprintf(err, err_len, "%s: %s", path, strerror(errno));
+    parse_state st = {.cfg = cfg, .err = err, .err_len = err_len};
+    if (ini_guard_open(&st.guard, path, err, err_len) != 0)
         return -1;
-    }
-    int rc = ini_parse_stream(counting_reader, &st, handler, &st);
-    fclose(st.file);
+    int rc = ini_parse_stream(ini_guard_reader, &st.guard, handler, &st);
+    if (!st.failed && ini_guard_finish(&st.guard, rc, err, err_len) != 0)
+        st.failed = 1;
+    ini_guard_close(&st.guard);
     if (st.failed)
         return -1;
-    if (rc != 0) {
-        snprintf(err, err_len, "%s:%d: syntax error (expected [section] or key = value)", path, rc);
-        return -1;
-    }
-    /* Consistency of the whole file; no single line to name. */
+    return check_whole(path, cfg, st.seen_watchdog_register, err, err_len);
+}
+
+/* Consistency of the whole file; no single line to name. */
+static int check_whole(const char *path, const rig_config *cfg, bool seen_watchdog_register, char *err,
+                       size_t err_len)
+{
     if (cfg->transport == RIG_TRANSPORT_TCP && cfg->host[0] == '\0') {
         snprintf(err, err_len, "%s: [sensors] host: required with transport = tcp", path);
         return -1;
@@ -389,6 +487,11 @@ int rig_config_load(const char *path, rig_config *cfg, char *err, size_t err_len
     }
     if (cfg->log_path[0] && !cfg->load.enabled && !isfinite(cfg->log_load_n)) {
         snprintf(err, err_len, "%s: [log] load_n: required when there is no [sensor.load] (the log needs a load)",
+                 path);
+        return -1;
+    }
+    if (cfg->output_watchdog_ms > 0 && (cfg->outputs != RIG_OUTPUTS_MODBUS || !seen_watchdog_register)) {
+        snprintf(err, err_len, "%s: [outputs] watchdog_ms: needs backend = modbus and the module's watchdog_register",
                  path);
         return -1;
     }

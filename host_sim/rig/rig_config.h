@@ -13,6 +13,7 @@
 #include "leveler/hal.h"
 
 #define RIG_TEXT_MAX 256
+#define RIG_MAX_WRITERS 16
 
 typedef enum { RIG_CLOCK_MONOTONIC = 0, RIG_CLOCK_LOCKSTEP = 1 } rig_clock;
 typedef enum { RIG_TRANSPORT_RTU = 0, RIG_TRANSPORT_TCP = 1 } rig_transport;
@@ -61,14 +62,19 @@ typedef struct {
     rig_output_kind outputs;
     char consumer[RIG_TEXT_MAX];
     rig_output_pin pin[HAL_OUT_COUNT];
+    uint32_t output_watchdog_ms;       /* modbus backend: the module's communication watchdog, 0 = none */
+    uint16_t output_watchdog_register; /* holding register the module takes it in */
 
     bool supervision_enabled;
-    char supervision_address[RIG_TEXT_MAX];
+    char supervision_address[RIG_TEXT_MAX]; /* a numeric IPv4/IPv6 address (localhost -> 127.0.0.1) */
     uint16_t supervision_port;        /* 0 = an ephemeral port chosen by the kernel */
     char supervision_port_file[RIG_TEXT_MAX]; /* if set, the bound port is written here */
     bool read_only;
     uint32_t idle_timeout_ms;
+    uint32_t request_timeout_ms;      /* a request's first to last byte */
     uint32_t max_clients;
+    uint32_t writer_count;            /* 0 = every client may write (unless read_only) */
+    char writers[RIG_MAX_WRITERS][48]; /* numeric addresses allowed to write */
 
     char log_path[RIG_TEXT_MAX];      /* empty = no run log */
     uint64_t log_rotate_bytes;
@@ -80,8 +86,14 @@ typedef struct {
 void rig_config_defaults(rig_config *cfg);
 
 /* Parse path over the defaults, then check the whole. 0 on success; otherwise
- * -1 with "file:line: [section] key: what is wrong" in err. */
+ * -1 with "file:line: [section] key: what is wrong" in err. A repeated key or
+ * section, a directory, an over-long line, a non-decimal or zero-padded
+ * integer, an address that is not numeric IPv4/IPv6 (or localhost) and a name
+ * that is not UTF-8 are errors. */
 int rig_config_load(const char *path, rig_config *cfg, char *err, size_t err_len);
+
+/* A numeric IPv4/IPv6 address or localhost -> canonical text in out; -1 otherwise. */
+int rig_parse_address(const char *value, char *out, size_t cap);
 
 /* Names used in the config for the HAL channels and outputs. */
 extern const char *const rig_channel_names[HAL_ADC_COUNT];

@@ -15,6 +15,17 @@
  *
  * SIGINT/SIGTERM set a flag: the tick in progress finishes, outputs go safe,
  * the log is fsync'ed and closed, exit status 0.
+ *
+ * When the process cannot do that (SIGKILL, a crash, a hang), two watchdogs
+ * outside it act: the output module's communication watchdog ([outputs]
+ * watchdog_ms, written at start; the module drives its outputs safe when the
+ * rig stops writing) and systemd's (WatchdogSec= in the unit: the tick loop
+ * sends WATCHDOG=1; a silent rig is killed and restarted, and a start drives
+ * every output safe first).
+ *
+ * The run log never stops control: a row the disk refuses is dropped whole
+ * (log_fault, log_rows_dropped in the register map) and SIGXFSZ is ignored,
+ * so a file-size limit is an error return, not a death.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
@@ -25,6 +36,8 @@
 #include <string.h>
 #include <time.h>
 
+#include <systemd/sd-daemon.h>
+
 #include "leveler/app.h"
 #include "leveler/regmap.h"
 #include "leveler/regmap_addr.h"
@@ -32,6 +45,7 @@
 #include "rig_config.h"
 #include "rig_hal.h"
 #include "runlog.h"
+#include "modbus_link.h"
 #include "sensor_module.h"
 #include "supervision.h"
 
@@ -77,9 +91,26 @@ static int32_t reg32(const uint16_t *r)
     return (int32_t)(((uint32_t)r[0] << 16) | r[1]);
 }
 
-static void log_tick(runlog *log, const rig_config *cfg, rig_sensors *sensors, const bool out[HAL_OUT_COUNT],
-                     double *last_load_n)
+/* Everything the rig holds open. */
+typedef struct {
+    rig_config cfg;
+    const char *config_path;
+    rig_link *link;
+    rig_sensors *sensors;
+    rig_output_backend outputs;
+    bool outputs_open;
+    rig_supervision *sv;
+    runlog *log;
+    double last_load_n;
+    bool log_fault_reported;
+    uint64_t ticks, overruns;
+    long long notify_every_ns; /* systemd watchdog: 0 = not asked for */
+    long long next_notify_ns;
+} rig;
+
+static void log_tick(rig *r, const bool out[HAL_OUT_COUNT])
 {
+    const rig_config *cfg = &r->cfg;
     uint16_t m[REG_MEASUREMENT_COUNT];
     if (leveler_regs_read(LEVELER_TABLE_INPUT_REGISTER, REG_MEASUREMENTS, REG_MEASUREMENT_COUNT, m) != LEVELER_REG_OK)
         return;
@@ -91,9 +122,9 @@ static void log_tick(runlog *log, const rig_config *cfg, rig_sensors *sensors, c
     }
     double load_n;
     if (cfg->load.enabled) {
-        if (rig_sensors_load_n(sensors, &load_n))
-            *last_load_n = load_n;
-        load_n = *last_load_n; /* the log needs a load in every row: hold the last good one */
+        if (rig_sensors_load_n(r->sensors, &load_n))
+            r->last_load_n = load_n;
+        load_n = r->last_load_n; /* the log needs a load in every row: hold the last good one */
     } else {
         load_n = cfg->log_load_n;
     }
@@ -109,8 +140,17 @@ static void log_tick(runlog *log, const rig_config *cfg, rig_sensors *sensors, c
         .vent_valve = out[HAL_OUT_VENT_VALVE],
         .acc_valve = cfg->pin[HAL_OUT_ACC_VALVE].configured ? out[HAL_OUT_ACC_VALVE] : -1,
     };
-    if (isfinite(row.load_n) && runlog_write(log, &row) != 0)
-        fprintf(stderr, "leveler-rig: run log %s: %s\n", cfg->log_path, strerror(errno));
+    if (!isfinite(row.load_n))
+        return;
+    if (runlog_write(r->log, &row) != 0 && !r->log_fault_reported)
+        fprintf(stderr, "leveler-rig: run log %s: %s: dropping rows until it can be written (control goes on)\n",
+                cfg->log_path, strerror(errno));
+    runlog_stats st = runlog_get_stats(r->log);
+    if (!st.fault && r->log_fault_reported)
+        fprintf(stderr, "leveler-rig: run log %s: writing again after %llu dropped rows\n", cfg->log_path,
+                st.rows_dropped);
+    r->log_fault_reported = st.fault;
+    leveler_app_report_log(st.fault, st.rows_dropped > UINT32_MAX ? UINT32_MAX : (uint32_t)st.rows_dropped);
 }
 
 static void usage(void)
@@ -119,37 +159,27 @@ static void usage(void)
                     "  --check   parse the config, print the result and exit\n");
 }
 
-int main(int argc, char **argv)
+/* 0 = run, 2 = usage error. */
+static int parse_args(int argc, char **argv, const char **config_path, bool *check_only)
 {
-    const char *config_path = NULL;
-    int check_only = 0;
+    *config_path = NULL;
+    *check_only = false;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--config") && i + 1 < argc)
-            config_path = argv[++i];
+            *config_path = argv[++i];
         else if (!strcmp(argv[i], "--check"))
-            check_only = 1;
-        else {
-            usage();
-            return 2;
-        }
+            *check_only = true;
+        else
+            *config_path = NULL, i = argc;
     }
-    if (config_path == NULL) {
-        usage();
-        return 2;
-    }
-
-    static rig_config cfg;
-    char err[512];
-    rig_config_defaults(&cfg);
-    if (rig_config_load(config_path, &cfg, err, sizeof err) != 0) {
-        fprintf(stderr, "leveler-rig: %s\n", err);
-        return 2;
-    }
-    if (check_only) {
-        printf("%s: ok\n", config_path);
+    if (*config_path != NULL)
         return 0;
-    }
+    usage();
+    return 2;
+}
 
+static void install_signals(void)
+{
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;
@@ -157,124 +187,198 @@ int main(int argc, char **argv)
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
     signal(SIGPIPE, SIG_IGN); /* a vanished client is an error return, not a death */
+    signal(SIGXFSZ, SIG_IGN); /* a file-size limit is EFBIG on the log, not a death with the compressor on */
+}
 
-    rig_sensors *sensors = rig_sensors_open(&cfg, err, sizeof err);
-    if (sensors == NULL) {
-        fprintf(stderr, "leveler-rig: %s: %s\n", config_path, err);
+/* Written whole then renamed, so a reader never sees half a number. */
+static void write_port_file(const rig *r)
+{
+    char tmp[RIG_TEXT_MAX + 8];
+    snprintf(tmp, sizeof tmp, "%s.tmp", r->cfg.supervision_port_file);
+    FILE *f = fopen(tmp, "w");
+    if (f == NULL || fprintf(f, "%u\n", rig_supervision_port(r->sv)) < 0 || fclose(f) != 0 ||
+        rename(tmp, r->cfg.supervision_port_file) != 0)
+        fprintf(stderr, "leveler-rig: [supervision] port_file %s: %s\n", r->cfg.supervision_port_file, strerror(errno));
+}
+
+static int open_supervision_and_log(rig *r, char *err, size_t err_len)
+{
+    const rig_config *cfg = &r->cfg;
+    if (cfg->supervision_enabled) {
+        r->sv = rig_supervision_open(cfg, err, err_len);
+        if (r->sv == NULL)
+            return -1;
+        if (cfg->supervision_port_file[0])
+            write_port_file(r);
+        fprintf(stderr, "leveler-rig: supervision on %s port %u%s\n", cfg->supervision_address,
+                rig_supervision_port(r->sv), cfg->read_only ? " (read-only)" : "");
+    }
+    if (cfg->log_path[0]) {
+        runlog_options lo = {.path = cfg->log_path, .config_name = cfg->name, .source = "rig",
+                             .rotate_bytes = (size_t)cfg->log_rotate_bytes, .keep_files = cfg->log_keep_files};
+        char lerr[400];
+        r->log = runlog_open(&lo, lerr, sizeof lerr);
+        if (r->log == NULL) {
+            snprintf(err, err_len, "[log] path: %s", lerr);
+            return -1;
+        }
+    }
+    return 0;
+}
+
+/* The module link, outputs driven safe, the firmware, supervision, the log. 0 or 1 (message printed). */
+static int rig_open(rig *r)
+{
+    char err[512];
+    r->last_load_n = NAN;
+    r->link = rig_link_open(&r->cfg, err, sizeof err);
+    if (r->link != NULL)
+        r->sensors = rig_sensors_open(&r->cfg, r->link, err, sizeof err);
+    if (r->sensors != NULL) {
+        int orc = r->cfg.outputs == RIG_OUTPUTS_GPIOD
+                      ? rig_gpiod_open(&r->cfg, &r->outputs, err, sizeof err)
+                      : rig_modbus_outputs_open(&r->cfg, r->link, &r->outputs, err, sizeof err);
+        r->outputs_open = orc == 0;
+    }
+    if (r->outputs_open) {
+        rig_hal_bind(r->sensors, r->cfg.clock);
+        leveler_app_init();
+    }
+    if (!r->outputs_open || open_supervision_and_log(r, err, sizeof err) != 0) {
+        fprintf(stderr, "leveler-rig: %s: %s\n", r->config_path, err);
         return 1;
     }
-    rig_output_backend outputs;
-    int orc = cfg.outputs == RIG_OUTPUTS_GPIOD
-                  ? rig_gpiod_open(&cfg, &outputs, err, sizeof err)
-                  : rig_modbus_outputs_open(&cfg, rig_sensors_modbus(sensors), &outputs, err, sizeof err);
-    if (orc != 0) {
-        fprintf(stderr, "leveler-rig: %s: %s\n", config_path, err);
-        rig_sensors_close(sensors);
-        return 1;
+    uint64_t usec = 0;
+    if (sd_watchdog_enabled(0, &usec) > 0 && usec > 0)
+        r->notify_every_ns = (long long)usec * 1000 / 4; /* well inside WatchdogSec */
+    sd_notify(0, "READY=1");
+    return 0;
+}
+
+static void notify_alive(rig *r)
+{
+    if (r->notify_every_ns == 0)
+        return;
+    long long now = mono_ns();
+    if (now >= r->next_notify_ns) {
+        sd_notify(0, "WATCHDOG=1");
+        r->next_notify_ns = now + r->notify_every_ns;
     }
+}
 
-    rig_hal_bind(sensors, cfg.clock);
-    leveler_app_init();
+/* Unchanged outputs are re-sent once a second, or often enough to feed the
+ * output module's watchdog (four times per watchdog time). */
+static uint64_t refresh_ticks(const rig_config *cfg)
+{
+    uint64_t t = 100;
+    if (cfg->outputs == RIG_OUTPUTS_MODBUS && cfg->output_watchdog_ms > 0)
+        t = cfg->output_watchdog_ms / 4u / LEVELER_TICK_MS;
+    return t < 1 ? 1 : t > 100 ? 100 : t;
+}
 
-    rig_supervision *sv = NULL;
-    if (cfg.supervision_enabled) {
-        sv = rig_supervision_open(&cfg, err, sizeof err);
-        if (sv == NULL) {
-            fprintf(stderr, "leveler-rig: %s: %s\n", config_path, err);
-            outputs.close(outputs.impl);
-            rig_sensors_close(sensors);
-            return 1;
+/* Sleeps to the next deadline (serving supervision meanwhile); counts missed ones. */
+static void wait_for_tick(rig *r, long long *deadline)
+{
+    if (r->cfg.clock == RIG_CLOCK_LOCKSTEP) {
+        if (r->sv)
+            rig_supervision_serve(r->sv, 0);
+        if (rig_sensors_step(r->sensors, LEVELER_TICK_MS) != 0) {
+            /* The module did not advance: wait a little instead of spinning. */
+            struct timespec pause = {0, 2 * NS_PER_MS};
+            nanosleep(&pause, NULL);
         }
-        if (cfg.supervision_port_file[0]) {
-            /* Written whole then renamed, so a reader never sees half a number. */
-            char tmp[RIG_TEXT_MAX + 8];
-            snprintf(tmp, sizeof tmp, "%s.tmp", cfg.supervision_port_file);
-            FILE *f = fopen(tmp, "w");
-            if (f == NULL || fprintf(f, "%u\n", rig_supervision_port(sv)) < 0 || fclose(f) != 0 ||
-                rename(tmp, cfg.supervision_port_file) != 0)
-                fprintf(stderr, "leveler-rig: [supervision] port_file %s: %s\n", cfg.supervision_port_file,
-                        strerror(errno));
-        }
-        fprintf(stderr, "leveler-rig: supervision on %s:%u%s\n", cfg.supervision_address,
-                rig_supervision_port(sv), cfg.read_only ? " (read-only)" : "");
+        return;
     }
-
-    runlog *log = NULL;
-    if (cfg.log_path[0]) {
-        runlog_options lo = {.path = cfg.log_path, .config_name = cfg.name, .source = "rig",
-                             .rotate_bytes = (size_t)cfg.log_rotate_bytes, .keep_files = cfg.log_keep_files};
-        log = runlog_open(&lo, err, sizeof err);
-        if (log == NULL) {
-            fprintf(stderr, "leveler-rig: %s: [log] path: %s\n", config_path, err);
-            rig_supervision_close(sv);
-            outputs.close(outputs.impl);
-            rig_sensors_close(sensors);
-            return 1;
-        }
+    /* Serve supervision until ~1 ms before the deadline, then sleep to it exactly. */
+    if (r->sv) {
+        long long left_ms = (*deadline - mono_ns()) / NS_PER_MS - 1;
+        rig_supervision_serve(r->sv, left_ms > 0 ? (int)left_ms : 0);
     }
+    struct timespec when = ts_of(*deadline);
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &when, NULL) == EINTR && !stop_requested) {
+    }
+    *deadline += TICK_NS;
+    long long now = mono_ns();
+    while (now >= *deadline) { /* this tick's deadline already passed: count and skip it */
+        leveler_app_report_tick_overrun();
+        r->overruns++;
+        *deadline += TICK_NS;
+    }
+}
 
+static void rig_loop(rig *r)
+{
     bool out[HAL_OUT_COUNT], applied[HAL_OUT_COUNT];
     bool have_applied = false;
-    double last_load_n = NAN;
-    uint64_t ticks = 0, overruns = 0;
-    const uint64_t refresh_ticks = 100; /* re-send unchanged outputs once a second */
+    char err[512];
+    const uint64_t refresh = refresh_ticks(&r->cfg);
     long long deadline = mono_ns() + TICK_NS;
-
     while (!stop_requested) {
-        rig_sensors_scan(sensors);
-        if (cfg.run_seconds > 0 && hal_now_ms() > cfg.run_seconds * 1000.0)
+        rig_sensors_scan(r->sensors);
+        if (r->cfg.run_seconds > 0 && hal_now_ms() > r->cfg.run_seconds * 1000.0)
             break;
         leveler_app_tick();
+        notify_alive(r);
         rig_hal_wanted_outputs(out);
-        if (!have_applied || memcmp(out, applied, sizeof out) != 0 || ticks % refresh_ticks == 0) {
-            if (outputs.apply(outputs.impl, out, err, sizeof err) != 0)
+        if (!have_applied || memcmp(out, applied, sizeof out) != 0 || r->ticks % refresh == 0) {
+            /* A failed write is tried again next tick. */
+            have_applied = r->outputs.apply(r->outputs.impl, out, err, sizeof err) == 0;
+            if (!have_applied)
                 fprintf(stderr, "leveler-rig: %s\n", err);
             memcpy(applied, out, sizeof out);
-            have_applied = true;
         }
-        if (log)
-            log_tick(log, &cfg, sensors, out, &last_load_n);
-        ticks++;
-
-        if (cfg.clock == RIG_CLOCK_LOCKSTEP) {
-            if (sv)
-                rig_supervision_serve(sv, 0);
-            if (rig_sensors_step(sensors, LEVELER_TICK_MS) != 0) {
-                /* The module did not advance: wait a little instead of spinning. */
-                struct timespec pause = {0, 2 * NS_PER_MS};
-                nanosleep(&pause, NULL);
-            }
-            continue;
-        }
-
-        /* Serve supervision until ~1 ms before the deadline, then sleep to it exactly. */
-        if (sv) {
-            long long left_ms = (deadline - mono_ns()) / NS_PER_MS - 1;
-            rig_supervision_serve(sv, left_ms > 0 ? (int)left_ms : 0);
-        }
-        struct timespec when = ts_of(deadline);
-        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &when, NULL) == EINTR && !stop_requested) {
-        }
-        deadline += TICK_NS;
-        long long now = mono_ns();
-        while (now >= deadline) { /* this tick's deadline already passed: count and skip it */
-            leveler_app_report_tick_overrun();
-            overruns++;
-            deadline += TICK_NS;
-        }
+        if (r->log)
+            log_tick(r, out);
+        r->ticks++;
+        wait_for_tick(r, &deadline);
     }
+}
 
-    /* Shutdown: outputs safe first, then the log. */
-    outputs.close(outputs.impl);
+/* Outputs safe first, then the log. Returns the exit status. */
+static int rig_close(rig *r)
+{
+    sd_notify(0, "STOPPING=1");
+    if (r->outputs_open)
+        r->outputs.close(r->outputs.impl);
     int rc = 0;
-    if (log && runlog_close(log) != 0) {
-        fprintf(stderr, "leveler-rig: closing run log %s: %s\n", cfg.log_path, strerror(errno));
+    if (r->log && runlog_close(r->log) != 0) {
+        fprintf(stderr, "leveler-rig: closing run log %s: %s\n", r->cfg.log_path, strerror(errno));
         rc = 1;
     }
-    uint32_t failed_scans = rig_sensors_failed_scans(sensors);
-    rig_supervision_close(sv);
-    rig_sensors_close(sensors);
-    fprintf(stderr, "leveler-rig: stopped after %llu ticks, %llu overruns, %u failed sensor scans\n",
-            (unsigned long long)ticks, (unsigned long long)overruns, failed_scans);
+    uint32_t failed_scans = r->sensors ? rig_sensors_failed_scans(r->sensors) : 0;
+    rig_link_stats ls = r->link ? rig_link_get_stats(r->link) : (rig_link_stats){0, 0};
+    rig_supervision_close(r->sv);
+    rig_sensors_close(r->sensors);
+    rig_link_close(r->link);
+    fprintf(stderr,
+            "leveler-rig: stopped after %llu ticks, %llu overruns, %u failed sensor scans, %u failed module requests, "
+            "%u reconnects\n",
+            (unsigned long long)r->ticks, (unsigned long long)r->overruns, failed_scans, ls.failed_requests,
+            ls.reconnects);
     return rc;
+}
+
+int main(int argc, char **argv)
+{
+    static rig r;
+    bool check_only;
+    if (parse_args(argc, argv, &r.config_path, &check_only) != 0)
+        return 2;
+    char err[512];
+    rig_config_defaults(&r.cfg);
+    if (rig_config_load(r.config_path, &r.cfg, err, sizeof err) != 0) {
+        fprintf(stderr, "leveler-rig: %s\n", err);
+        return 2;
+    }
+    if (check_only) {
+        printf("%s: ok\n", r.config_path);
+        return 0;
+    }
+    install_signals();
+    if (rig_open(&r) != 0) {
+        rig_close(&r);
+        return 1;
+    }
+    rig_loop(&r);
+    return rig_close(&r);
 }

@@ -1,12 +1,10 @@
 #define _POSIX_C_SOURCE 200809L
 #include "sensor_module.h"
 
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 /* One register the scan needs. */
 typedef struct {
@@ -16,9 +14,7 @@ typedef struct {
 
 struct rig_sensors {
     const rig_config *cfg;
-    modbus_t *ctx;
-    bool connected;
-    struct timespec last_connect_try;
+    rig_link *link;
     bool valid[HAL_ADC_COUNT];
     uint16_t counts[HAL_ADC_COUNT];
     bool load_valid;
@@ -44,25 +40,7 @@ uint16_t rig_channel_counts(const rig_channel *ch, uint16_t raw)
     return (uint16_t)c;
 }
 
-static double seconds_since(const struct timespec *t)
-{
-    struct timespec now;
-    clock_gettime(CLOCK_MONOTONIC, &now);
-    return (double)(now.tv_sec - t->tv_sec) + 1e-9 * (double)(now.tv_nsec - t->tv_nsec);
-}
-
-static void try_connect(rig_sensors *s)
-{
-    clock_gettime(CLOCK_MONOTONIC, &s->last_connect_try);
-    if (modbus_connect(s->ctx) == 0) {
-        s->connected = true;
-        return;
-    }
-    fprintf(stderr, "leveler-rig: sensor module: connect failed: %s (retrying every second)\n",
-            modbus_strerror(errno));
-}
-
-rig_sensors *rig_sensors_open(const rig_config *cfg, char *err, size_t err_len)
+rig_sensors *rig_sensors_open(const rig_config *cfg, rig_link *link, char *err, size_t err_len)
 {
     rig_sensors *s = calloc(1, sizeof *s);
     if (s == NULL) {
@@ -70,65 +48,26 @@ rig_sensors *rig_sensors_open(const rig_config *cfg, char *err, size_t err_len)
         return NULL;
     }
     s->cfg = cfg;
-    if (cfg->transport == RIG_TRANSPORT_TCP) {
-        char port[16];
-        snprintf(port, sizeof port, "%u", cfg->port);
-        s->ctx = modbus_new_tcp_pi(cfg->host, port);
-    } else {
-        s->ctx = modbus_new_rtu(cfg->device, (int)cfg->baud, cfg->parity, cfg->data_bits, cfg->stop_bits);
-    }
-    if (s->ctx == NULL) {
-        snprintf(err, err_len, "sensor module: [sensors] %s: %s",
-                 cfg->transport == RIG_TRANSPORT_TCP ? "host/port" : "device/baud/parity", modbus_strerror(errno));
-        free(s);
-        return NULL;
-    }
-    modbus_set_slave(s->ctx, cfg->slave);
-    uint32_t us = cfg->timeout_ms * 1000u;
-    modbus_set_response_timeout(s->ctx, us / 1000000u, us % 1000000u);
-    modbus_set_byte_timeout(s->ctx, us / 1000000u, us % 1000000u);
-    try_connect(s);
+    s->link = link;
     return s;
 }
 
 void rig_sensors_close(rig_sensors *s)
 {
-    if (s == NULL)
-        return;
-    modbus_close(s->ctx);
-    modbus_free(s->ctx);
     free(s);
-}
-
-modbus_t *rig_sensors_modbus(rig_sensors *s)
-{
-    return s->ctx;
-}
-
-/* After an error: resynchronise, and on a dead TCP link reconnect later. */
-static void after_error(rig_sensors *s)
-{
-    int e = errno;
-    if (s->cfg->transport == RIG_TRANSPORT_TCP &&
-        (e == ECONNRESET || e == EPIPE || e == EBADF || e == ENOTCONN || e == ECONNREFUSED)) {
-        modbus_close(s->ctx);
-        s->connected = false;
-    } else {
-        modbus_flush(s->ctx);
-    }
 }
 
 /* Read one table's span [lo, hi] into regs[lo..hi]; false on failure. */
 static bool read_span(rig_sensors *s, rig_module_table table, uint16_t lo, uint16_t hi, uint16_t *regs)
 {
-    int n = hi - lo + 1;
-    int got = table == RIG_TABLE_INPUT ? modbus_read_input_registers(s->ctx, lo, n, regs + lo)
-                                       : modbus_read_registers(s->ctx, lo, n, regs + lo);
-    if (got != n) {
-        after_error(s);
+    modbus_t *ctx = rig_link_begin(s->link);
+    if (ctx == NULL)
         return false;
-    }
-    return true;
+    int n = hi - lo + 1;
+    int got = table == RIG_TABLE_INPUT ? modbus_read_input_registers(ctx, lo, n, regs + lo)
+                                       : modbus_read_registers(ctx, lo, n, regs + lo);
+    rig_link_end(s->link, got == n);
+    return got == n;
 }
 
 void rig_sensors_scan(rig_sensors *s)
@@ -137,15 +76,6 @@ void rig_sensors_scan(rig_sensors *s)
     memset(s->valid, 0, sizeof s->valid);
     s->load_valid = false;
     s->time_valid = false;
-    if (!s->connected) {
-        if (seconds_since(&s->last_connect_try) >= 1.0)
-            try_connect(s);
-        if (!s->connected) {
-            s->failed_scans++;
-            return;
-        }
-    }
-
     /* Registers wanted, by table. */
     wanted_reg want[HAL_ADC_COUNT + 3];
     int n_want = 0;
@@ -226,13 +156,12 @@ bool rig_sensors_module_time_ms(const rig_sensors *s, uint32_t *time_ms)
 
 int rig_sensors_step(rig_sensors *s, uint16_t step_ms)
 {
-    if (!s->connected)
+    modbus_t *ctx = rig_link_begin(s->link);
+    if (ctx == NULL)
         return -1;
-    if (modbus_write_register(s->ctx, s->cfg->lockstep_step_register, step_ms) != 1) {
-        after_error(s);
-        return -1;
-    }
-    return 0;
+    bool ok = modbus_write_register(ctx, s->cfg->lockstep_step_register, step_ms) == 1;
+    rig_link_end(s->link, ok);
+    return ok ? 0 : -1;
 }
 
 uint32_t rig_sensors_failed_scans(const rig_sensors *s)

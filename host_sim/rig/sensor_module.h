@@ -11,18 +11,15 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include <modbus.h>
-
+#include "modbus_link.h"
 #include "rig_config.h"
 
 typedef struct rig_sensors rig_sensors;
 
-/* Creates the libmodbus context and tries to connect. A module that cannot be
- * reached yet is not an error (reads fail, the firmware's debounce acts, and
- * the connection is retried every second); a bad device or host is. */
-rig_sensors *rig_sensors_open(const rig_config *cfg, char *err, size_t err_len);
+/* Scans over link (not owned). A module that cannot be reached is not an
+ * error: reads fail, the firmware's debounce acts, the link reconnects. */
+rig_sensors *rig_sensors_open(const rig_config *cfg, rig_link *link, char *err, size_t err_len);
 void rig_sensors_close(rig_sensors *s);
-modbus_t *rig_sensors_modbus(rig_sensors *s);
 
 /* Read every enabled channel (and the module clock in lockstep). */
 void rig_sensors_scan(rig_sensors *s);

@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <modbus.h>
+#include <netdb.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <stdbool.h>
@@ -25,7 +26,10 @@ typedef struct {
     int fd;
     uint8_t buf[FRAME_MAX];
     size_t len;
-    uint64_t last_ms;
+    uint64_t last_request_ms; /* last complete request (or the connect): the idle timer */
+    uint64_t partial_since_ms; /* first byte of the request in buf: the request deadline */
+    uint32_t served;           /* complete requests handled */
+    bool may_write;            /* its address is in [supervision] writers (or there is no list) */
 } client;
 
 struct rig_supervision {
@@ -35,7 +39,9 @@ struct rig_supervision {
     uint16_t port;
     bool read_only;
     uint32_t idle_timeout_ms;
+    uint32_t request_timeout_ms;
     uint32_t max_clients;
+    const rig_config *cfg;
     client *clients;
     rig_supervision_stats stats;
 };
@@ -47,6 +53,39 @@ static uint64_t now_ms(void)
     return (uint64_t)t.tv_sec * 1000u + (uint64_t)t.tv_nsec / 1000000u;
 }
 
+/* A non-blocking listening socket on a numeric IPv4/IPv6 address (libmodbus's
+ * own listener is IPv4 only and reads any text as an address). */
+static int listen_on(const char *address, uint16_t port, uint16_t *bound_port, char *err, size_t err_len)
+{
+    struct addrinfo hints = {.ai_flags = AI_PASSIVE | AI_NUMERICHOST | AI_NUMERICSERV, .ai_socktype = SOCK_STREAM};
+    struct addrinfo *ai = NULL;
+    char service[8];
+    snprintf(service, sizeof service, "%u", port);
+    int rc = getaddrinfo(address, service, &hints, &ai);
+    if (rc != 0) {
+        snprintf(err, err_len, "supervision: [supervision] address '%s': %s", address, gai_strerror(rc));
+        return -1;
+    }
+    int fd = socket(ai->ai_family, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+    int one = 1;
+    if (fd < 0 || setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one) != 0 ||
+        bind(fd, ai->ai_addr, ai->ai_addrlen) != 0 || listen(fd, 16) != 0) {
+        snprintf(err, err_len, "supervision: [supervision] address/port: cannot listen on %s port %u: %s", address,
+                 port, strerror(errno));
+        if (fd >= 0)
+            close(fd);
+        freeaddrinfo(ai);
+        return -1;
+    }
+    freeaddrinfo(ai);
+    struct sockaddr_storage sa;
+    socklen_t alen = sizeof sa;
+    getsockname(fd, (struct sockaddr *)&sa, &alen);
+    *bound_port = ntohs(sa.ss_family == AF_INET6 ? ((struct sockaddr_in6 *)&sa)->sin6_port
+                                                 : ((struct sockaddr_in *)&sa)->sin_port);
+    return fd;
+}
+
 rig_supervision *rig_supervision_open(const rig_config *cfg, char *err, size_t err_len)
 {
     rig_supervision *sv = calloc(1, sizeof *sv);
@@ -54,37 +93,30 @@ rig_supervision *rig_supervision_open(const rig_config *cfg, char *err, size_t e
         snprintf(err, err_len, "supervision: out of memory");
         return NULL;
     }
-    sv->listen_fd = -1;
+    sv->cfg = cfg;
     sv->read_only = cfg->read_only;
     sv->idle_timeout_ms = cfg->idle_timeout_ms;
+    sv->request_timeout_ms = cfg->request_timeout_ms;
     sv->max_clients = cfg->max_clients;
     sv->clients = calloc(cfg->max_clients, sizeof *sv->clients);
     for (uint32_t i = 0; sv->clients && i < cfg->max_clients; i++)
         sv->clients[i].fd = -1;
-    sv->ctx = modbus_new_tcp(cfg->supervision_address, cfg->supervision_port);
+    sv->ctx = modbus_new_tcp("127.0.0.1", MODBUS_TCP_DEFAULT_PORT); /* builds replies only; never connects */
     sv->mapping = modbus_mapping_new(leveler_regs_table_size(LEVELER_TABLE_COIL),
                                      leveler_regs_table_size(LEVELER_TABLE_DISCRETE_INPUT),
                                      leveler_regs_table_size(LEVELER_TABLE_HOLDING_REGISTER),
                                      leveler_regs_table_size(LEVELER_TABLE_INPUT_REGISTER));
+    sv->listen_fd = -1;
     if (sv->clients == NULL || sv->ctx == NULL || sv->mapping == NULL) {
-        snprintf(err, err_len, "supervision: [supervision] address '%s': %s", cfg->supervision_address,
-                 modbus_strerror(errno));
+        snprintf(err, err_len, "supervision: out of memory");
         rig_supervision_close(sv);
         return NULL;
     }
-    sv->listen_fd = modbus_tcp_listen(sv->ctx, 8);
+    sv->listen_fd = listen_on(cfg->supervision_address, cfg->supervision_port, &sv->port, err, err_len);
     if (sv->listen_fd < 0) {
-        snprintf(err, err_len, "supervision: [supervision] address/port: cannot listen on %s:%u: %s",
-                 cfg->supervision_address, cfg->supervision_port, modbus_strerror(errno));
         rig_supervision_close(sv);
         return NULL;
     }
-    /* accept_clients() drains the backlog until EAGAIN: never block the tick. */
-    fcntl(sv->listen_fd, F_SETFL, fcntl(sv->listen_fd, F_GETFL) | O_NONBLOCK);
-    struct sockaddr_in addr;
-    socklen_t alen = sizeof addr;
-    getsockname(sv->listen_fd, (struct sockaddr *)&addr, &alen);
-    sv->port = ntohs(addr.sin_port);
     return sv;
 }
 
@@ -98,11 +130,69 @@ rig_supervision_stats rig_supervision_get_stats(const rig_supervision *sv)
     return sv->stats;
 }
 
+static uint16_t be16(const uint8_t *p)
+{
+    return (uint16_t)((p[0] << 8) | p[1]);
+}
+
 static void drop(client *c)
 {
     close(c->fd);
     c->fd = -1;
     c->len = 0;
+}
+
+/* The peer's address as [supervision] writers spells it (IPv4-mapped IPv6 as IPv4). */
+static bool peer_may_write(const rig_supervision *sv, int fd)
+{
+    if (sv->cfg->writer_count == 0)
+        return true;
+    struct sockaddr_storage sa;
+    socklen_t len = sizeof sa;
+    char text[INET6_ADDRSTRLEN] = "";
+    if (getpeername(fd, (struct sockaddr *)&sa, &len) != 0)
+        return false;
+    if (sa.ss_family == AF_INET) {
+        inet_ntop(AF_INET, &((struct sockaddr_in *)&sa)->sin_addr, text, sizeof text);
+    } else {
+        const struct in6_addr *a = &((struct sockaddr_in6 *)&sa)->sin6_addr;
+        if (IN6_IS_ADDR_V4MAPPED(a))
+            inet_ntop(AF_INET, &a->s6_addr[12], text, sizeof text);
+        else
+            inet_ntop(AF_INET6, a, text, sizeof text);
+    }
+    for (uint32_t i = 0; i < sv->cfg->writer_count; i++)
+        if (!strcmp(text, sv->cfg->writers[i]))
+            return true;
+    return false;
+}
+
+static bool has_frame(const client *c)
+{
+    return c->len >= MBAP_LEN && c->len >= 6u + be16(c->buf + 4);
+}
+
+/* All slots taken: the slot of a client that has not completed a request
+ * for request_timeout_ms (never-served ones first, then the longest idle),
+ * so idle or slow connections cannot shut out one that sends requests. */
+static client *slot_to_reuse(rig_supervision *sv, uint64_t now)
+{
+    client *victim = NULL;
+    for (uint32_t i = 0; i < sv->max_clients; i++) {
+        client *c = &sv->clients[i];
+        if (c->fd < 0)
+            return c;
+        if (has_frame(c) || now - c->last_request_ms < sv->request_timeout_ms)
+            continue;
+        if (victim == NULL || (c->served == 0 && victim->served != 0) ||
+            ((c->served == 0) == (victim->served == 0) && c->last_request_ms < victim->last_request_ms))
+            victim = c;
+    }
+    if (victim != NULL) {
+        drop(victim);
+        sv->stats.evicted++;
+    }
+    return victim;
 }
 
 static void accept_clients(rig_supervision *sv)
@@ -111,28 +201,18 @@ static void accept_clients(rig_supervision *sv)
         int fd = accept4(sv->listen_fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0)
             return;
-        client *slot = NULL;
-        for (uint32_t i = 0; i < sv->max_clients; i++)
-            if (sv->clients[i].fd < 0) {
-                slot = &sv->clients[i];
-                break;
-            }
+        uint64_t now = now_ms();
+        client *slot = slot_to_reuse(sv, now);
         if (slot == NULL) {
             close(fd);
             sv->stats.refused_full++;
             continue;
         }
-        slot->fd = fd;
-        slot->len = 0;
-        slot->last_ms = now_ms();
+        *slot = (client){.fd = fd, .last_request_ms = now, .may_write = peer_may_write(sv, fd)};
         sv->stats.accepted++;
     }
 }
 
-static uint16_t be16(const uint8_t *p)
-{
-    return (uint16_t)((p[0] << 8) | p[1]);
-}
 
 static leveler_table table_of(int function)
 {
@@ -171,6 +251,22 @@ static void refresh_mapping(rig_supervision *sv, leveler_table table, uint16_t a
     }
 }
 
+/* MBAP echo + (function | 0x80) + code. Built here rather than by libmodbus,
+ * which adds 0x80 in a byte and wraps: FC 0x83 would be answered "03 01",
+ * a normal FC 03 reply. A function code of 0x80 or more stays as it is. */
+static int reply_exception(rig_supervision *sv, client *c, const uint8_t *req, int code)
+{
+    sv->stats.exceptions++;
+    uint8_t rsp[MBAP_LEN + 2];
+    memcpy(rsp, req, 4); /* transaction and protocol id */
+    rsp[4] = 0;
+    rsp[5] = 3;
+    rsp[6] = req[6]; /* unit id */
+    rsp[7] = (uint8_t)(req[MBAP_LEN] | 0x80u);
+    rsp[8] = (uint8_t)code;
+    return send(c->fd, rsp, sizeof rsp, MSG_NOSIGNAL) == (ssize_t)sizeof rsp ? 0 : -1;
+}
+
 /* One whole request (MBAP + PDU). Returns -1 if the client must go. */
 static int handle_request(rig_supervision *sv, client *c, const uint8_t *req, int req_len)
 {
@@ -196,8 +292,7 @@ static int handle_request(rig_supervision *sv, client *c, const uint8_t *req, in
         leveler_table table = table_of(function);
         leveler_reg_status st = leveler_regs_read(table, addr, count, values);
         if (st != LEVELER_REG_OK) {
-            sv->stats.exceptions++;
-            return modbus_reply_exception(sv->ctx, req, (unsigned)exception_for(st)) < 0 ? -1 : 0;
+            return reply_exception(sv, c, req, exception_for(st));
         }
         refresh_mapping(sv, table, addr, count, values);
         rc = modbus_reply(sv->ctx, req, req_len, sv->mapping);
@@ -207,9 +302,9 @@ static int handle_request(rig_supervision *sv, client *c, const uint8_t *req, in
     case MODBUS_FC_WRITE_SINGLE_REGISTER:
     case MODBUS_FC_WRITE_MULTIPLE_COILS:
     case MODBUS_FC_WRITE_MULTIPLE_REGISTERS: {
-        if (sv->read_only) {
-            sv->stats.exceptions++;
-            return modbus_reply_exception(sv->ctx, req, MODBUS_EXCEPTION_ILLEGAL_FUNCTION) < 0 ? -1 : 0;
+        if (sv->read_only || !c->may_write) {
+            sv->stats.refused_writes += !sv->read_only;
+            return reply_exception(sv, c, req, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
         }
         if (pdu_len < 5)
             goto bad_value;
@@ -241,8 +336,7 @@ static int handle_request(rig_supervision *sv, client *c, const uint8_t *req, in
         /* Through the firmware's validation, all or nothing. */
         leveler_reg_status st = leveler_regs_write(table_of(function), addr, count, values, NULL);
         if (st != LEVELER_REG_OK) {
-            sv->stats.exceptions++;
-            return modbus_reply_exception(sv->ctx, req, (unsigned)exception_for(st)) < 0 ? -1 : 0;
+            return reply_exception(sv, c, req, exception_for(st));
         }
         /* Accepted: libmodbus builds the echo reply (it also stores the values
          * in the mapping, which is refreshed before every read anyway). */
@@ -250,33 +344,23 @@ static int handle_request(rig_supervision *sv, client *c, const uint8_t *req, in
         return rc < 0 ? -1 : 0;
     }
     default:
-        sv->stats.exceptions++;
-        return modbus_reply_exception(sv->ctx, req, MODBUS_EXCEPTION_ILLEGAL_FUNCTION) < 0 ? -1 : 0;
+        return reply_exception(sv, c, req, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
     }
 bad_value:
-    sv->stats.exceptions++;
-    return modbus_reply_exception(sv->ctx, req, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE) < 0 ? -1 : 0;
+    return reply_exception(sv, c, req, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
 }
 
-/* Reads what the socket has, handles whole frames. Returns -1 to drop. */
-static int service_client(rig_supervision *sv, client *c)
+/* Handles up to FRAMES_PER_CLIENT_PER_CALL whole frames, already buffered
+ * ones first, reading more while the socket has it. Returns -1 to drop. */
+static int service_client(rig_supervision *sv, client *c, bool readable)
 {
-    for (int frames = 0; frames < FRAMES_PER_CLIENT_PER_CALL;) {
-        ssize_t n = recv(c->fd, c->buf + c->len, sizeof c->buf - c->len, 0);
-        if (n == 0)
-            return -1; /* peer closed */
-        if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)
-            return -1;
-        if (n > 0) {
-            c->len += (size_t)n;
-            c->last_ms = now_ms();
-        }
-        bool progressed = false;
+    int frames = 0;
+    for (;;) {
         while (c->len >= MBAP_LEN && frames < FRAMES_PER_CLIENT_PER_CALL) {
             uint16_t protocol = be16(c->buf + 2), length = be16(c->buf + 4);
-            if (protocol != 0 || length < 2 || length > 254) {
+            if (protocol != 0 || length < 2 || length > 254 || c->buf[MBAP_LEN] == 0) {
                 sv->stats.dropped_garbage++;
-                return -1; /* not Modbus TCP: no way to find the next frame */
+                return -1; /* not Modbus TCP (or function code 0): no way to find the next frame */
             }
             size_t frame = 6u + length;
             if (c->len < frame)
@@ -285,13 +369,40 @@ static int service_client(rig_supervision *sv, client *c)
                 return -1;
             memmove(c->buf, c->buf + frame, c->len - frame);
             c->len -= frame;
+            c->served++;
             frames++;
-            progressed = true;
+            c->last_request_ms = c->partial_since_ms = now_ms(); /* a remainder starts its own deadline */
         }
-        if (n <= 0 || !progressed)
-            return 0;
+        if (!readable || frames >= FRAMES_PER_CLIENT_PER_CALL)
+            return 0; /* frames left in buf are served on the next call, without new bytes */
+        ssize_t n = recv(c->fd, c->buf + c->len, sizeof c->buf - c->len, 0);
+        if (n == 0)
+            return -1; /* peer closed */
+        if (n < 0)
+            return (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) ? 0 : -1;
+        if (c->len == 0)
+            c->partial_since_ms = now_ms();
+        c->len += (size_t)n;
     }
-    return 0;
+}
+
+/* Slow clients (a request not whole within request_timeout_ms) and idle ones
+ * (no complete request for idle_timeout_ms) go; single bytes keep nobody. */
+static void drop_late_clients(rig_supervision *sv)
+{
+    uint64_t now = now_ms();
+    for (uint32_t i = 0; i < sv->max_clients; i++) {
+        client *c = &sv->clients[i];
+        if (c->fd < 0 || has_frame(c))
+            continue;
+        if (c->len > 0 && now - c->partial_since_ms > sv->request_timeout_ms) {
+            sv->stats.dropped_slow++;
+            drop(c);
+        } else if (now - c->last_request_ms > sv->idle_timeout_ms) {
+            sv->stats.dropped_idle++;
+            drop(c);
+        }
+    }
 }
 
 void rig_supervision_serve(rig_supervision *sv, int timeout_ms)
@@ -299,34 +410,28 @@ void rig_supervision_serve(rig_supervision *sv, int timeout_ms)
     struct pollfd fds[65];
     int owner[65];
     int n = 0;
+    bool buffered = false; /* a client has whole frames waiting: do not sleep */
     fds[n] = (struct pollfd){.fd = sv->listen_fd, .events = POLLIN};
     owner[n++] = -1;
     for (uint32_t i = 0; i < sv->max_clients; i++) {
         if (sv->clients[i].fd >= 0) {
             fds[n] = (struct pollfd){.fd = sv->clients[i].fd, .events = POLLIN};
             owner[n++] = (int)i;
+            buffered = buffered || has_frame(&sv->clients[i]);
         }
     }
-    int ready = poll(fds, (nfds_t)n, timeout_ms < 0 ? 0 : timeout_ms);
-    if (ready > 0) {
-        for (int k = 1; k < n; k++) {
-            if (fds[k].revents == 0)
-                continue;
-            client *c = &sv->clients[owner[k]];
-            if ((fds[k].revents & (POLLERR | POLLNVAL)) || service_client(sv, c) < 0)
-                drop(c);
-        }
-        if (fds[0].revents & POLLIN)
-            accept_clients(sv);
-    }
-    uint64_t now = now_ms();
-    for (uint32_t i = 0; i < sv->max_clients; i++) {
-        client *c = &sv->clients[i];
-        if (c->fd >= 0 && now - c->last_ms > sv->idle_timeout_ms) {
-            sv->stats.dropped_idle++;
+    int ready = poll(fds, (nfds_t)n, buffered || timeout_ms < 0 ? 0 : timeout_ms);
+    for (int k = 1; k < n; k++) {
+        client *c = &sv->clients[owner[k]];
+        short ev = ready > 0 ? fds[k].revents : 0;
+        if (ev == 0 && !has_frame(c))
+            continue;
+        if ((ev & (POLLERR | POLLNVAL)) || service_client(sv, c, (ev & (POLLIN | POLLHUP)) != 0) < 0)
             drop(c);
-        }
     }
+    if (ready > 0 && (fds[0].revents & POLLIN))
+        accept_clients(sv);
+    drop_late_clients(sv);
 }
 
 void rig_supervision_close(rig_supervision *sv)

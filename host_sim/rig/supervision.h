@@ -10,8 +10,19 @@
  * - read_only: every write function (05, 06, 15, 16) is answered with
  *   exception 01 (ILLEGAL FUNCTION): the server does not offer writing.
  * - Function codes other than 01-06, 15, 16: exception 01.
- * - A client idle for idle_timeout_ms is dropped; so is one whose bytes are not
- *   Modbus TCP (protocol id other than 0, length outside 2..254).
+ * - writers: only clients from these addresses may write; others get exception 01.
+ * - A request must arrive whole within request_timeout_ms of its first byte
+ *   (slow clients are dropped); a client with no complete request for
+ *   idle_timeout_ms is dropped (single bytes do not keep it); so is one whose
+ *   bytes are not Modbus TCP (protocol id other than 0, length outside
+ *   2..254, function code 0).
+ * - All slots taken: a new connection takes the slot of a client with no
+ *   complete request for request_timeout_ms (never-served first), so idle
+ *   or slow connections cannot shut out a client that sends requests.
+ * - Every whole request of a segment is answered (pipelining), at most 8 per
+ *   client per call for fairness; the rest on the next call, without waiting
+ *   for new bytes.
+ * - Exception replies carry function | 0x80 (0x81..0xFF, never wrapped).
  */
 #ifndef LEVELER_RIG_SUPERVISION_H
 #define LEVELER_RIG_SUPERVISION_H
@@ -26,7 +37,10 @@ typedef struct rig_supervision rig_supervision;
 typedef struct {
     uint32_t accepted;
     uint32_t refused_full;   /* connections refused at max_clients */
+    uint32_t evicted;        /* idle or slow clients dropped to make room for a new one */
     uint32_t dropped_idle;
+    uint32_t dropped_slow;   /* a request not whole within request_timeout_ms */
+    uint32_t refused_writes; /* writes from an address not in [supervision] writers */
     uint32_t dropped_garbage;
     uint32_t requests;
     uint32_t exceptions;

@@ -59,6 +59,30 @@ static int read_port(const char *path, pid_t pid, double timeout_s)
     return -1;
 }
 
+/* base + extra, where extra's keys for a section base already has go under
+ * that section (a repeated [section] is an error in a rig config). */
+static void merge_ini(char *base, size_t cap, const char *extra)
+{
+    while (extra && *extra) {
+        const char *next = strstr(extra + 1, "\n[");
+        size_t block_len = next ? (size_t)(next + 1 - extra) : strlen(extra);
+        const char *eol = memchr(extra, '\n', block_len);
+        size_t head_len = eol ? (size_t)(eol + 1 - extra) : block_len;
+        char head[128];
+        snprintf(head, sizeof head, "%.*s", (int)head_len, extra);
+        char *at = extra[0] == '[' ? strstr(base, head) : NULL;
+        size_t used = strlen(base);
+        if (at != NULL && used + block_len - head_len < cap) {
+            char *insert = at + head_len;
+            memmove(insert + block_len - head_len, insert, strlen(insert) + 1);
+            memcpy(insert, extra + head_len, block_len - head_len);
+        } else if (used + block_len + 1 < cap) {
+            snprintf(base + used, cap - used, "%.*s", (int)block_len, extra);
+        }
+        extra += block_len;
+    }
+}
+
 int harness_start_plant(rig_run *run, const char *plant_server, const char *plant_config, const char *clock,
                         const char *rig_clock, const char *extra_ini)
 {
@@ -82,7 +106,8 @@ int harness_start_plant(rig_run *run, const char *plant_server, const char *plan
     FILE *f = fopen(run->rig_config, "w");
     if (f == NULL)
         return -1;
-    fprintf(f,
+    char text[4096];
+    snprintf(text, sizeof text,
             "[rig]\nname = thesis-900lb\nclock = %s\n"
             "[sensors]\ntransport = tcp\nhost = 127.0.0.1\nport = %d\ntimeout_ms = %d\n"
             "[sensor.height]\nregister = 0\n[sensor.p_spring]\nregister = 1\n[sensor.p_pipe]\nregister = 2\n"
@@ -91,9 +116,10 @@ int harness_start_plant(rig_run *run, const char *plant_server, const char *plan
             "[outputs]\nbackend = modbus\n[output.compressor]\ncoil = 0\n[output.spring_valve]\ncoil = 1\n"
             "[output.vent_valve]\ncoil = 2\n[output.acc_valve]\ncoil = 3\n"
             "[supervision]\naddress = 127.0.0.1\nport = 0\nport_file = %s/supervision.port\n"
-            "[log]\npath = %s\n%s\n",
-            rig_clock, run->plant_port, strcmp(rig_clock, "lockstep") ? 5 : 2000, run->dir, run->log_path,
-            extra_ini ? extra_ini : "");
+            "[log]\npath = %s\n",
+            rig_clock, run->plant_port, strcmp(rig_clock, "lockstep") ? 5 : 2000, run->dir, run->log_path);
+    merge_ini(text, sizeof text, extra_ini);
+    fputs(text, f);
     fclose(f);
     return 0;
 }

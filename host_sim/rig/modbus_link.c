@@ -1,0 +1,116 @@
+/* The Modbus link to the rig's I/O module (modbus_link.h). */
+#define _POSIX_C_SOURCE 200809L
+#include "modbus_link.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <time.h>
+
+struct rig_link {
+    const rig_config *cfg;
+    modbus_t *ctx;
+    bool connected;
+    bool retry_now;          /* a dropped connection is retried at once, a refused one once a second */
+    struct timespec last_try;
+    uint32_t failures_in_row;
+    rig_link_stats stats;
+};
+
+static double seconds_since(const struct timespec *t)
+{
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)(now.tv_sec - t->tv_sec) + 1e-9 * (double)(now.tv_nsec - t->tv_nsec);
+}
+
+static void try_connect(rig_link *l)
+{
+    clock_gettime(CLOCK_MONOTONIC, &l->last_try);
+    l->retry_now = false;
+    if (modbus_connect(l->ctx) == 0) {
+        l->connected = true;
+        return;
+    }
+    fprintf(stderr, "leveler-rig: I/O module: connect failed: %s (retrying every second)\n", modbus_strerror(errno));
+}
+
+rig_link *rig_link_open(const rig_config *cfg, char *err, size_t err_len)
+{
+    rig_link *l = calloc(1, sizeof *l);
+    if (l == NULL) {
+        snprintf(err, err_len, "I/O module: out of memory");
+        return NULL;
+    }
+    l->cfg = cfg;
+    if (cfg->transport == RIG_TRANSPORT_TCP) {
+        char port[16];
+        snprintf(port, sizeof port, "%u", cfg->port);
+        l->ctx = modbus_new_tcp_pi(cfg->host, port);
+    } else {
+        l->ctx = modbus_new_rtu(cfg->device, (int)cfg->baud, cfg->parity, cfg->data_bits, cfg->stop_bits);
+    }
+    if (l->ctx == NULL) {
+        snprintf(err, err_len, "I/O module: [sensors] %s: %s",
+                 cfg->transport == RIG_TRANSPORT_TCP ? "host/port" : "device/baud/parity", modbus_strerror(errno));
+        free(l);
+        return NULL;
+    }
+    modbus_set_slave(l->ctx, cfg->slave);
+    uint32_t us = cfg->timeout_ms * 1000u;
+    modbus_set_response_timeout(l->ctx, us / 1000000u, us % 1000000u);
+    modbus_set_byte_timeout(l->ctx, us / 1000000u, us % 1000000u);
+    try_connect(l);
+    return l;
+}
+
+void rig_link_close(rig_link *l)
+{
+    if (l == NULL)
+        return;
+    modbus_close(l->ctx);
+    modbus_free(l->ctx);
+    free(l);
+}
+
+modbus_t *rig_link_begin(rig_link *l)
+{
+    if (!l->connected && (l->retry_now || seconds_since(&l->last_try) >= 1.0))
+        try_connect(l);
+    if (!l->connected)
+        return NULL;
+    modbus_flush(l->ctx); /* a late reply to an earlier request must not answer this one */
+    return l->ctx;
+}
+
+static bool link_is_dead(int e)
+{
+    return e == ECONNRESET || e == EPIPE || e == EBADF || e == ENOTCONN || e == ECONNREFUSED;
+}
+
+void rig_link_end(rig_link *l, bool ok)
+{
+    if (ok) {
+        l->failures_in_row = 0;
+        return;
+    }
+    int e = errno;
+    l->stats.failed_requests++;
+    l->failures_in_row++;
+    bool tcp = l->cfg->transport == RIG_TRANSPORT_TCP;
+    if (tcp && (link_is_dead(e) || l->failures_in_row >= RIG_LINK_RECONNECT_AFTER)) {
+        /* A fresh connection carries nothing stale: reconnect on the next request. */
+        modbus_close(l->ctx);
+        l->connected = false;
+        l->retry_now = true;
+        l->failures_in_row = 0;
+        l->stats.reconnects++;
+        return;
+    }
+    modbus_flush(l->ctx);
+}
+
+rig_link_stats rig_link_get_stats(const rig_link *l)
+{
+    return l->stats;
+}
