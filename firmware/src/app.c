@@ -172,6 +172,11 @@ void leveler_app_report_log(bool fault, uint32_t rows_dropped)
     g_status.log_rows_dropped = rows_dropped;
 }
 
+void leveler_app_report_sensor_scans_failed(uint32_t failed)
+{
+    g_status.sensor_scans_failed = failed;
+}
+
 void leveler_app_report_clock_fault(bool hse_failed)
 {
     g_status.clock_fault = hse_failed;

@@ -14,6 +14,7 @@ struct rig_link {
     bool retry_now;          /* a dropped connection is retried at once, a refused one once a second */
     struct timespec last_try;
     uint32_t failures_in_row;
+    uint32_t reconnect_after; /* failures in a row before the next reconnect: 3, doubling to 100 */
     rig_link_stats stats;
 };
 
@@ -43,6 +44,7 @@ rig_link *rig_link_open(const rig_config *cfg, char *err, size_t err_len)
         return NULL;
     }
     l->cfg = cfg;
+    l->reconnect_after = RIG_LINK_RECONNECT_AFTER;
     if (cfg->transport == RIG_TRANSPORT_TCP) {
         char port[16];
         snprintf(port, sizeof port, "%u", cfg->port);
@@ -92,18 +94,22 @@ void rig_link_end(rig_link *l, bool ok)
 {
     if (ok) {
         l->failures_in_row = 0;
+        l->reconnect_after = RIG_LINK_RECONNECT_AFTER;
         return;
     }
     int e = errno;
     l->stats.failed_requests++;
     l->failures_in_row++;
     bool tcp = l->cfg->transport == RIG_TRANSPORT_TCP;
-    if (tcp && (link_is_dead(e) || l->failures_in_row >= RIG_LINK_RECONNECT_AFTER)) {
-        /* A fresh connection carries nothing stale: reconnect on the next request. */
+    if (tcp && (link_is_dead(e) || l->failures_in_row >= l->reconnect_after)) {
+        /* A fresh connection carries nothing stale: reconnect on the next
+         * request. A module that stays silent gets fewer and fewer new
+         * connections (a stopped one still accepts them into its backlog). */
         modbus_close(l->ctx);
         l->connected = false;
         l->retry_now = true;
         l->failures_in_row = 0;
+        l->reconnect_after = l->reconnect_after >= 50 ? 100 : 2 * l->reconnect_after;
         l->stats.reconnects++;
         return;
     }

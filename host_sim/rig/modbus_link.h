@@ -8,7 +8,9 @@
  *   and reports a mismatch as an error;
  * - after an error the link is flushed; after RIG_LINK_RECONNECT_AFTER failed
  *   requests in a row (or a dead socket) a TCP link is closed and opened
- *   again, which discards whatever the old connection still carried;
+ *   again, which discards whatever the old connection still carried; while
+ *   the module stays silent the next reconnect waits twice as many failures
+ *   (up to 100, about a second);
  * - a module that cannot be reached is retried once a second.
  */
 #ifndef LEVELER_RIG_MODBUS_LINK_H

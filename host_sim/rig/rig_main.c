@@ -317,6 +317,7 @@ static void rig_loop(rig *r)
         rig_sensors_scan(r->sensors);
         if (r->cfg.run_seconds > 0 && hal_now_ms() > r->cfg.run_seconds * 1000.0)
             break;
+        leveler_app_report_sensor_scans_failed(rig_sensors_failed_scans(r->sensors));
         leveler_app_tick();
         notify_alive(r);
         rig_hal_wanted_outputs(out);

@@ -55,6 +55,7 @@ typedef struct {
     uint16_t firmware_version;
     uint16_t raw_counts[HAL_ADC_COUNT];
     uint32_t log_rows_dropped; /* Linux rig: run-log rows not written */
+    uint32_t sensor_scans_failed; /* Linux rig: module scans without a valid reply */
     bool compressor_on;
     bool spring_valve_open;
     bool vent_valve_open;
