@@ -13,6 +13,8 @@
  *   holding register 0     lockstep: writing N advances the plant N ms (multiple
  *                          of 10) before the reply; ignored with --clock realtime
  *   coils 0..3             compressor, spring valve, vent valve, accumulator valve
+ *   holding register 2     communication watchdog, ms (0 = off; output_watchdog.h)
+ *   input register  5      watchdog trips
  *
  * The plant steps on the simulator's one stepper (host_sim/sim/stepper.h) with
  * the coils as its commands: the first tick runs under the config's
@@ -37,6 +39,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "output_watchdog.h"
 #include "plant.h"
 #include "stepper.h"
 
@@ -265,6 +268,7 @@ static void serve_client(served_plant *sp, int i, int lockstep)
         sp->clients[i] = -1;
         return;
     }
+    output_watchdog_after_request(sp->map, query, header);
     if (function == MODBUS_FC_WRITE_SINGLE_COIL || function == MODBUS_FC_WRITE_MULTIPLE_COILS)
         sim_stepper_decide(&sp->st); /* a real-time plant sees the valves at once */
 }
@@ -295,7 +299,12 @@ static void serve(served_plant *sp, const server_options *o)
                 FD_SET(sp->clients[i], &rd);
                 maxfd = sp->clients[i] > maxfd ? sp->clients[i] : maxfd;
             }
+        if (output_watchdog_check(sp->map, 4))
+            sim_stepper_decide(&sp->st); /* the module drove its outputs safe by itself */
         double wait_s = o->lockstep ? 0.1 : fmax(0.0, next_tick - mono_s());
+        int wd_left_ms = output_watchdog_ms_left(sp->map);
+        if (wd_left_ms >= 0 && wait_s > wd_left_ms / 1000.0)
+            wait_s = wd_left_ms / 1000.0;
         struct timeval tv = {.tv_sec = (time_t)wait_s,
                              .tv_usec = (suseconds_t)((wait_s - (double)(time_t)wait_s) * 1e6)};
         if (select(maxfd + 1, &rd, NULL, NULL, &tv) <= 0)
