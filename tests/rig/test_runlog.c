@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -311,6 +312,72 @@ static void numbers_are_printfs(void **state)
     }
 }
 
+/* In a child under a 4000-byte file-size limit (SIGXFSZ ignored, as
+ * leveler-rig does): rows past the limit are dropped whole and counted, the
+ * file keeps only complete lines; when the limit is lifted ("space returns")
+ * logging resumes with whole lines and the fault clears. */
+static void file_size_limit_drops_rows_whole_and_resumes(void **state)
+{
+    (void)state;
+    char path[300], counts[320];
+    snprintf(path, sizeof path, "%s/limit.csv", dir);
+    snprintf(counts, sizeof counts, "%s/limit.counts", dir);
+    pid_t pid = fork();
+    if (pid == 0) {
+        signal(SIGXFSZ, SIG_IGN);
+        char err[256];
+        runlog_options o = {.path = path, .config_name = "t", .source = "rig"};
+        runlog *log = runlog_open(&o, err, sizeof err);
+        struct rlimit rl;
+        getrlimit(RLIMIT_FSIZE, &rl);
+        struct rlimit tight = {.rlim_cur = 4000, .rlim_max = rl.rlim_max};
+        if (log == NULL || setrlimit(RLIMIT_FSIZE, &tight) != 0)
+            _exit(10);
+        int written = 0, dropped = 0;
+        for (int i = 0; i < 200; i++) {
+            runlog_row row = sample_row(i * 0.01);
+            if (runlog_write(log, &row) == 0)
+                written++;
+            else
+                dropped++;
+        }
+        runlog_stats st = runlog_get_stats(log);
+        if (st.rows_dropped != (unsigned long long)dropped || !st.fault)
+            _exit(11);
+        if (setrlimit(RLIMIT_FSIZE, &rl) != 0)
+            _exit(12);
+        for (int i = 0; i < 5; i++) {
+            runlog_row row = sample_row(2.0 + i * 0.01);
+            if (runlog_write(log, &row) != 0)
+                _exit(13);
+        }
+        st = runlog_get_stats(log);
+        if (st.fault || runlog_close(log) != 0)
+            _exit(14);
+        FILE *f = fopen(counts, "w");
+        fprintf(f, "%d %d\n", written, dropped);
+        fclose(f);
+        _exit(0);
+    }
+    int status = 0;
+    assert_int_equal(waitpid(pid, &status, 0), pid);
+    assert_true(WIFEXITED(status));
+    assert_int_equal(WEXITSTATUS(status), 0);
+    int written = 0, dropped = 0;
+    FILE *f = fopen(counts, "r");
+    assert_non_null(f);
+    assert_int_equal(fscanf(f, "%d %d", &written, &dropped), 2);
+    fclose(f);
+    print_message("4000-byte limit: %d rows written, %d dropped whole, then 5 more after the limit was lifted\n",
+                  written, dropped);
+    assert_true(written > 10 && dropped > 100);
+    size_t len;
+    char *text = slurp(path, &len);
+    assert_non_null(text);
+    assert_int_equal(check_complete_lines(text, len), (size_t)written + 5);
+    free(text);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -321,6 +388,7 @@ int main(void)
         cmocka_unit_test(dev_null_is_a_log),
         cmocka_unit_test(buffered_log_has_the_same_bytes),
         cmocka_unit_test(numbers_are_printfs),
+        cmocka_unit_test(file_size_limit_drops_rows_whole_and_resumes),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
