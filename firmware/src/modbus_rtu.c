@@ -114,9 +114,12 @@ typedef struct {
     size_t pdu_len;   /* bytes written; 0 = no reply */
 } pdu_out;
 
+/* The exception function code is function | 0x80, within 0x81..0xFF: a
+ * request code of 0x80 or more keeps its value (it never wraps to a normal
+ * reply). Codes 0 and 0x80 have none in that range: no reply. */
 static void reply_exception(pdu_out *out, uint8_t function_code, uint8_t exception_code)
 {
-    if (out->pdu_cap < 2u) {
+    if (out->pdu_cap < 2u || (function_code & 0x7Fu) == 0u) {
         out->pdu_len = 0; /* not even an exception fits: stay silent */
         return;
     }

@@ -358,9 +358,9 @@ static int service_client(rig_supervision *sv, client *c, bool readable)
     for (;;) {
         while (c->len >= MBAP_LEN && frames < FRAMES_PER_CLIENT_PER_CALL) {
             uint16_t protocol = be16(c->buf + 2), length = be16(c->buf + 4);
-            if (protocol != 0 || length < 2 || length > 254 || c->buf[MBAP_LEN] == 0) {
+            if (protocol != 0 || length < 2 || length > 254 || (c->buf[MBAP_LEN] & 0x7Fu) == 0) {
                 sv->stats.dropped_garbage++;
-                return -1; /* not Modbus TCP (or function code 0): no way to find the next frame */
+                return -1; /* not Modbus TCP (or function code 0 / 0x80, which have no exception reply) */
             }
             size_t frame = 6u + length;
             if (c->len < frame)

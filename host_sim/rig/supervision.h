@@ -15,7 +15,7 @@
  *   (slow clients are dropped); a client with no complete request for
  *   idle_timeout_ms is dropped (single bytes do not keep it); so is one whose
  *   bytes are not Modbus TCP (protocol id other than 0, length outside
- *   2..254, function code 0).
+ *   2..254, function code 0 or 0x80).
  * - All slots taken: a new connection takes the slot of a client with no
  *   complete request for request_timeout_ms (never-served first), so idle
  *   or slow connections cannot shut out a client that sends requests.

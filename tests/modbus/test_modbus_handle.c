@@ -76,6 +76,29 @@ static void test_exception_04_when_the_reply_does_not_fit(void **state)
     assert_int_equal(leveler_settings_current()->stall_window_s, 0x21);
 }
 
+/* Exception function codes stay within 0x81..0xFF (issue 13): 0x83 is
+ * answered 83 01, never "03 01" (a normal FC 03 reply); 0x41 -> C1; 0 and
+ * 0x80 have none (0x80 is outside the range): no reply. */
+static void test_exception_function_codes_never_wrap(void **state)
+{
+    (void)state;
+    static const uint8_t asked[] = {0x83, 0xFF, 0x81, 0x41, 0x2B};
+    for (size_t i = 0; i < sizeof asked; i++) {
+        uint8_t req[16];
+        size_t len = frame(req, (const uint8_t[]){0x01, asked[i], 0x00, 0x00, 0x00, 0x01}, 6);
+        assert_int_equal(leveler_modbus_rtu_handle(req, len, resp, sizeof resp), 5);
+        assert_int_equal(resp[1], asked[i] | 0x80);
+        assert_true(resp[1] >= 0x81);
+        assert_int_equal(resp[2], 0x01);
+    }
+    static const uint8_t none[] = {0x00, 0x80};
+    for (size_t i = 0; i < sizeof none; i++) {
+        uint8_t req[16];
+        size_t len = frame(req, (const uint8_t[]){0x01, none[i], 0x00, 0x00, 0x00, 0x01}, 6);
+        assert_int_equal(leveler_modbus_rtu_handle(req, len, resp, sizeof resp), 0);
+    }
+}
+
 static void test_broadcast_reads_and_exceptions_are_silent(void **state)
 {
     (void)state;
@@ -201,6 +224,7 @@ int main(void)
         cmocka_unit_test_setup(test_reference_crc_matches_the_specification_example, fresh_firmware),
         cmocka_unit_test_setup(test_exception_04_when_the_reply_does_not_fit, fresh_firmware),
         cmocka_unit_test_setup(test_broadcast_reads_and_exceptions_are_silent, fresh_firmware),
+        cmocka_unit_test_setup(test_exception_function_codes_never_wrap, fresh_firmware),
         cmocka_unit_test_setup(test_frame_gap_follows_the_baud, fresh_firmware),
         cmocka_unit_test_setup(test_pause_inside_the_gap_keeps_one_frame, fresh_firmware),
         cmocka_unit_test_setup(test_reply_written_in_pieces_is_whole, fresh_firmware),
