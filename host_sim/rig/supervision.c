@@ -172,47 +172,51 @@ static bool has_frame(const client *c)
     return c->len >= MBAP_LEN && c->len >= 6u + be16(c->buf + 4);
 }
 
-/* All slots taken: the slot of a client that has not completed a request
- * for request_timeout_ms (never-served ones first, then the longest idle),
- * so idle or slow connections cannot shut out one that sends requests. */
-static client *slot_to_reuse(rig_supervision *sv, uint64_t now)
+/* A new connection's time to send its first whole request before a newer
+ * one may take its slot (two ticks: a real client sends it at once). */
+#define NEW_CLIENT_GRACE_MS 20u
+
+/* A free slot, or the slot of a client that may make room: one that never
+ * completed a request and is older than NEW_CLIENT_GRACE_MS (oldest first),
+ * else one with no complete request for request_timeout_ms (longest idle
+ * first). NULL: every slot is busy; new connections wait in the backlog. */
+static client *slot_for_new(rig_supervision *sv, uint64_t now)
 {
     client *victim = NULL;
     for (uint32_t i = 0; i < sv->max_clients; i++) {
         client *c = &sv->clients[i];
         if (c->fd < 0)
             return c;
-        if (has_frame(c) || now - c->last_request_ms < sv->request_timeout_ms)
+        uint64_t quiet = now - c->last_request_ms;
+        if (has_frame(c) || quiet < (c->served ? sv->request_timeout_ms : NEW_CLIENT_GRACE_MS))
             continue;
         if (victim == NULL || (c->served == 0 && victim->served != 0) ||
             ((c->served == 0) == (victim->served == 0) && c->last_request_ms < victim->last_request_ms))
             victim = c;
     }
-    if (victim != NULL) {
-        drop(victim);
-        sv->stats.evicted++;
-    }
     return victim;
 }
 
+/* Accepts while there is room (see slot_for_new); the rest stays in the
+ * kernel's backlog, in order, for the next call. */
 static void accept_clients(rig_supervision *sv)
 {
     for (int n = 0; n < 8; n++) {
+        uint64_t now = now_ms();
+        client *slot = slot_for_new(sv, now);
+        if (slot == NULL)
+            return;
         int fd = accept4(sv->listen_fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0)
             return;
-        uint64_t now = now_ms();
-        client *slot = slot_to_reuse(sv, now);
-        if (slot == NULL) {
-            close(fd);
-            sv->stats.refused_full++;
-            continue;
+        if (slot->fd >= 0) {
+            drop(slot);
+            sv->stats.evicted++;
         }
         *slot = (client){.fd = fd, .last_request_ms = now, .may_write = peer_may_write(sv, fd)};
         sv->stats.accepted++;
     }
 }
-
 
 static leveler_table table_of(int function)
 {
@@ -411,7 +415,8 @@ void rig_supervision_serve(rig_supervision *sv, int timeout_ms)
     int owner[65];
     int n = 0;
     bool buffered = false; /* a client has whole frames waiting: do not sleep */
-    fds[n] = (struct pollfd){.fd = sv->listen_fd, .events = POLLIN};
+    /* Without room, the listening socket is left out: no busy loop on a backlog. */
+    fds[n] = (struct pollfd){.fd = slot_for_new(sv, now_ms()) ? sv->listen_fd : -1, .events = POLLIN};
     owner[n++] = -1;
     for (uint32_t i = 0; i < sv->max_clients; i++) {
         if (sv->clients[i].fd >= 0) {

@@ -16,9 +16,11 @@
  *   idle_timeout_ms is dropped (single bytes do not keep it); so is one whose
  *   bytes are not Modbus TCP (protocol id other than 0, length outside
  *   2..254, function code 0 or 0x80).
- * - All slots taken: a new connection takes the slot of a client with no
- *   complete request for request_timeout_ms (never-served first), so idle
- *   or slow connections cannot shut out a client that sends requests.
+ * - All slots taken: a new connection takes the slot of a client that has
+ *   not completed a request within 20 ms of connecting (oldest first), else
+ *   of one with no complete request for request_timeout_ms; with no such
+ *   slot it waits in the kernel's backlog, in order. So idle or slow
+ *   connections cannot shut out a client that sends its request at once.
  * - Every whole request of a segment is answered (pipelining), at most 8 per
  *   client per call for fairness; the rest on the next call, without waiting
  *   for new bytes.
@@ -36,7 +38,6 @@ typedef struct rig_supervision rig_supervision;
 
 typedef struct {
     uint32_t accepted;
-    uint32_t refused_full;   /* connections refused at max_clients */
     uint32_t evicted;        /* idle or slow clients dropped to make room for a new one */
     uint32_t dropped_idle;
     uint32_t dropped_slow;   /* a request not whole within request_timeout_ms */
