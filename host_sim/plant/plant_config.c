@@ -5,6 +5,7 @@
  * the file, the line, the field and the allowed range.
  */
 #define _POSIX_C_SOURCE 200809L
+#include "ini_guard.h"
 #include "plant.h"
 #include "config_table.h"
 
@@ -149,11 +150,10 @@ typedef struct {
 } load_ctx;
 
 typedef struct {
-    FILE *f;
+    ini_guard guard; /* the file, real line numbers, repeated keys and sections */
     const char *path;
-    int line;
     int keys_seen;
-    unsigned char seen[SLOT_COUNT]; /* duplicates within this file */
+    unsigned seen_line[SLOT_COUNT]; /* line where each quantity was given (any unit); 0 = not yet */
     load_ctx *ctx;
 } file_ctx;
 
@@ -169,19 +169,10 @@ static void fail(file_ctx *fc, const char *section, const char *name, const char
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
     if (name)
-        snprintf(ctx->err, ctx->err_len, "%s:%d: [%s] %s = %s: %s", fc->path, fc->line, section, name,
+        snprintf(ctx->err, ctx->err_len, "%s:%u: [%s] %s = %s: %s", fc->path, fc->guard.line, section, name,
                  value ? value : "", msg);
     else
-        snprintf(ctx->err, ctx->err_len, "%s:%d: %s", fc->path, fc->line, msg);
-}
-
-static char *reader(char *str, int num, void *stream)
-{
-    file_ctx *fc = stream;
-    char *r = fgets(str, num, fc->f);
-    if (r)
-        fc->line++;
-    return r;
+        snprintf(ctx->err, ctx->err_len, "%s:%u: %s", fc->path, fc->guard.line, msg);
 }
 
 static int parse_number(const char *s, double *out)
@@ -283,6 +274,10 @@ static int key_include(file_ctx *fc, const char *section, const char *name, cons
 static int key_name(file_ctx *fc, const char *section, const char *name, const char *value)
 {
     plant_config *cfg = fc->ctx->cfg;
+    if (!ini_utf8_valid(value)) {
+        fail(fc, section, name, value, "name must be valid UTF-8");
+        return 0;
+    }
     if (!value[0] || strlen(value) >= PLANT_NAME_MAX) {
         fail(fc, section, name, value, "name must be 1..%d characters", PLANT_NAME_MAX - 1);
         return 0;
@@ -419,11 +414,11 @@ static int read_special(file_ctx *fc, const char *section, const char *name, con
     for (size_t i = 0; i < SPECIAL_COUNT; i++) {
         if (strcmp(section, special_keys[i][0]) == 0 && strcmp(name, special_keys[i][1]) == 0) {
             size_t slot = FIELD_COUNT * PLANT_MAX_BANDS + i;
-            if (fc->seen[slot]) {
-                fail(fc, section, name, value, "given twice in this file");
+            if (fc->seen_line[slot]) {
+                fail(fc, section, name, value, "given twice in this file (first at line %u)", fc->seen_line[slot]);
                 return 0;
             }
-            fc->seen[slot] = 1;
+            fc->seen_line[slot] = fc->guard.line;
             return special_readers[i](fc, section, name, value) != 0 ? !fc->ctx->failed : 0;
         }
     }
@@ -455,11 +450,12 @@ static int store_field(file_ctx *fc, size_t i, int band, const unit *u, const ch
     load_ctx *ctx = fc->ctx;
     const field *f = &fields[i];
     size_t slot = i * PLANT_MAX_BANDS + (size_t)(band >= 0 ? band : 0);
-    if (fc->seen[slot]) {
-        fail(fc, section, name, value, "%s given twice in this file (possibly under another unit)", f->base);
+    if (fc->seen_line[slot]) {
+        fail(fc, section, name, value, "%s given twice in this file (first at line %u, possibly under another unit)",
+             f->base, fc->seen_line[slot]);
         return 0;
     }
-    fc->seen[slot] = 1;
+    fc->seen_line[slot] = fc->guard.line;
     double v;
     if (parse_number(value, &v) != 0) {
         fail(fc, section, name, value, "not a number");
@@ -491,7 +487,7 @@ static int store_field(file_ctx *fc, size_t i, int band, const unit *u, const ch
         ctx->band_keys[band] |= 1u << (i - first_band_field());
     }
     if (strcmp(section, "controller") == 0 && strncmp(name, "band_", 5) == 0)
-        snprintf(ctx->edge_where, sizeof ctx->edge_where, "%s:%d", fc->path, fc->line);
+        snprintf(ctx->edge_where, sizeof ctx->edge_where, "%s:%u", fc->path, fc->guard.line);
     return 1;
 }
 
@@ -500,6 +496,10 @@ static int handler(void *user, const char *section, const char *name, const char
     file_ctx *fc = user;
     if (fc->ctx->failed)
         return 0;
+    if (ini_guard_key(&fc->guard, section, name, fc->ctx->err, fc->ctx->err_len) != 0) {
+        fc->ctx->failed = 1;
+        return 0;
+    }
     fc->keys_seen++;
     if (!is_known_section(section)) {
         fail(fc, section, name, value, "unknown section [%s] (see docs/config-format.md)", section);
@@ -540,23 +540,18 @@ static int load_file(load_ctx *ctx, const char *path)
     }
     fc->path = path;
     fc->ctx = ctx;
-    fc->f = fopen(path, "r");
-    if (!fc->f) {
+    char err[512];
+    if (ini_guard_open(&fc->guard, path, err, sizeof err) != 0) {
         if (!ctx->failed)
-            snprintf(ctx->err, ctx->err_len, "%s: cannot open: %s", path, strerror(errno));
+            snprintf(ctx->err, ctx->err_len, "%s", err);
         ctx->failed = 1;
         free(fc);
         return -1;
     }
-    int rc = ini_parse_stream(reader, fc, handler, fc);
-    fclose(fc->f);
-    if (rc > 0 && !ctx->failed) {
+    int rc = ini_parse_stream(ini_guard_reader, &fc->guard, handler, fc);
+    if (!ctx->failed && ini_guard_finish(&fc->guard, rc, ctx->err, ctx->err_len) != 0)
         ctx->failed = 1;
-        snprintf(ctx->err, ctx->err_len, "%s:%d: syntax error (expected [section] or key = value)", path, rc);
-    } else if (rc < 0 && !ctx->failed) {
-        ctx->failed = 1;
-        snprintf(ctx->err, ctx->err_len, "%s: cannot read", path);
-    }
+    ini_guard_close(&fc->guard);
     free(fc);
     return ctx->failed ? -1 : 0;
 }

@@ -99,6 +99,50 @@ static void whole_file_checks(void **state)
                  " [log] load_n: required when there is no [sensor.load]");
 }
 
+/* Issue 13: addresses, repeated keys and sections, decimal ports, long lines,
+ * directories and names. */
+static void hardening_errors(void **state)
+{
+    (void)state;
+    expect_error(OUTPUTS "[supervision]\nread_only = true\n\nread_only = false\n",
+                 ":14: [supervision] read_only: repeated (first at line 12)");
+    expect_error("[sensors]\nport = 502\n[rig]\nname = a\n[sensors]\nslave = 2\n" OUTPUTS,
+                 ":5: [sensors]: section repeated (first at line 1)");
+    expect_error("[sensors]\nport = 0777\n" OUTPUTS, ":2: [sensors] port: '0777': leading zeros are not allowed");
+    expect_error("[sensors]\nport = 0x1F6\n" OUTPUTS, ":2: [sensors] port: '0x1F6' is not an integer");
+    expect_error(OUTPUTS "[supervision]\naddress = 0127.0.0.1\n",
+                 ":12: [supervision] address: '0127.0.0.1' is not a numeric IPv4 or IPv6 address");
+    expect_error(OUTPUTS "[supervision]\naddress = example.org\n", ":12: [supervision] address: 'example.org' is not");
+    expect_error(OUTPUTS "[supervision]\nwriters = 127.0.0.1, 10.0.0.01\n",
+                 ":12: [supervision] writers: '10.0.0.01' is not a numeric");
+    expect_error("[sensors]\nhost = 192.168.001.2\n" OUTPUTS, ":2: [sensors] host: '192.168.001.2' is neither");
+    expect_error("[rig]\nname = caf\xc3(\n" OUTPUTS, ":2: [rig] name: not valid UTF-8");
+    static char long_text[6000];
+    snprintf(long_text, sizeof long_text, "; one\n[rig]\nname = %05000d\n" OUTPUTS, 0);
+    expect_error(long_text, ":3: line longer than");
+    expect_error("[outputs]\nbackend = modbus\nwatchdog_ms = 200\n" OUTPUTS, " [outputs] watchdog_ms: needs");
+
+    rig_config cfg;
+    char err[512];
+    rig_config_defaults(&cfg);
+    assert_int_equal(rig_config_load("/tmp", &cfg, err, sizeof err), -1);
+    assert_non_null(strstr(err, "/tmp: not a regular file (a directory)"));
+
+    /* What resolves: IPv6, localhost = loopback, canonical text, a writers list. */
+    assert_int_equal(load_text(OUTPUTS "[supervision]\naddress = localhost\nwriters = ::1, 127.0.0.2\n"
+                               "[sensors]\nhost = ::1\nport = 1502\n", &cfg, err, sizeof err), 0);
+    assert_string_equal(cfg.supervision_address, "127.0.0.1");
+    assert_int_equal(cfg.writer_count, 2);
+    assert_string_equal(cfg.writers[0], "::1");
+    assert_string_equal(cfg.host, "::1");
+    assert_int_equal(cfg.port, 1502);
+    assert_int_equal(load_text(OUTPUTS "[supervision]\naddress = 0:0:0:0:0:0:0:1\n", &cfg, err, sizeof err), 0);
+    assert_string_equal(cfg.supervision_address, "::1");
+    char out[64];
+    assert_int_equal(rig_parse_address("255.255.255.255", out, sizeof out), 0);
+    assert_int_equal(rig_parse_address("127.1", out, sizeof out), -1);
+}
+
 static void missing_file_is_named(void **state)
 {
     (void)state;
@@ -120,6 +164,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(example_config_parses),
         cmocka_unit_test(errors_name_file_line_key_and_range),
         cmocka_unit_test(whole_file_checks),
+        cmocka_unit_test(hardening_errors),
         cmocka_unit_test(missing_file_is_named),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -211,6 +211,20 @@ static void test_config_errors(void **state)
     /* include: the included file's own errors keep its name and line */
     write_file("base.ini", "[pipe]\n\nvolume_in3 = 0\n");
     expect_error("[config]\ninclude = base.ini\n", "base.ini:3: [pipe] volume_in3", "out of range");
+    /* issue 13: repeated keys and sections name both lines, long lines, names, directories */
+    expect_error("[spring]\nvolume_in3 = 270\n\nvolume_in3 = 280\n", "bad.ini:4: [spring] volume_in3",
+                 "repeated (first at line 2)");
+    expect_error("[spring]\nvolume_in3 = 270\nvolume_m3 = 0.004\n", "bad.ini:3:", "(first at line 2");
+    expect_error("[pipe]\nvolume_in3 = 12\n[spring]\nvolume_in3 = 270\n[pipe]\n", "bad.ini:5: [pipe]",
+                 "section repeated (first at line 1)");
+    static char long_text[6000];
+    snprintf(long_text, sizeof long_text, "[config]\n; %05000d\n[pipe]\nvolume_in3 = 12\n", 0);
+    expect_error(long_text, "bad.ini:2:", "line longer than");
+    expect_error("[config]\nname = caf\xc3\n", "bad.ini:2: [config] name", "UTF-8");
+    static plant_config cfg;
+    char err[1024];
+    assert_int_equal(plant_config_load("/tmp", &cfg, err, sizeof err), -1);
+    assert_non_null(strstr(err, "/tmp: not a regular file (a directory)"));
 }
 
 static void test_config_units_and_include(void **state)
