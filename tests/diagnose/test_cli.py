@@ -104,7 +104,7 @@ def test_unknown_config(logs, tmp_path, capsys):
 def test_whole_run_names_the_effect_and_writes_atomically(logs, tmp_path, capsys):
     out = tmp_path / "out"
     out.mkdir()
-    (out / "stale.txt").write_text("from an earlier run")
+    (out / "diagnosis.json").write_text("{\"from\": \"an earlier run\"}")   # an earlier output of its own
     rc, err = run_cli(args(logs, out, "--effects", "leak,sensor_lag", "--fast"), capsys)
     assert rc == 0, err
     d = json.loads((out / "diagnosis.json").read_text())
@@ -114,10 +114,47 @@ def test_whole_run_names_the_effect_and_writes_atomically(logs, tmp_path, capsys
     assert d["shrink_pct"] > 50.0
     assert d["ranking"][0]["params"]["tau_pressure_s"]["lo"] == 0.0
     assert abs(d["ranking"][0]["params"]["tau_pressure_s"]["value"] - 0.5) < 0.15
-    assert not (out / "stale.txt").exists()                      # replaced whole
+    assert "from" not in d                                       # the earlier output replaced
     assert [p for p in os.listdir(tmp_path) if p.startswith(".diagnose-")] == []
     html = (out / "report.html").read_text()
     assert "data:image/png;base64," in html and "sensor_lag" in html
+
+
+@pytest.mark.parametrize("kind", ["foreign_folder", "file", "under_a_file", "unwritable"])
+def test_out_is_checked_before_the_diagnosis_and_nothing_foreign_deleted(logs, tmp_path, capsys, monkeypatch,
+                                                                        kind):
+    """Issue 13: a folder holding other files is refused (never deleted), an
+    existing file or an unwritable place is an error, all before any work."""
+    out = tmp_path / "out"
+    if kind == "foreign_folder":
+        out.mkdir()
+        (out / "notes.txt").write_text("mine")
+        (out / "diagnosis.json").write_text("{}")
+    elif kind == "file":
+        out.write_text("a file")
+    elif kind == "under_a_file":
+        (tmp_path / "plain").write_text("x")
+        out = tmp_path / "plain" / "out"
+    else:
+        locked = tmp_path / "locked"
+        locked.mkdir()
+        out = locked / "out"
+        real_mkdtemp = cli.tempfile.mkdtemp
+
+        def refuse(*a, **kw):   # as a read-only folder would (tests may run as root)
+            if kw.get("dir") == str(locked):
+                raise PermissionError(13, "Permission denied")
+            return real_mkdtemp(*a, **kw)
+        monkeypatch.setattr(cli.tempfile, "mkdtemp", refuse)
+    from leveler.diagnose import pipeline
+    monkeypatch.setattr(pipeline, "diagnose", lambda *a, **kw: pytest.fail("diagnosis ran before --out was checked"))
+    rc, err = run_cli(args(logs, out, "--effects", "leak", "--fast"), capsys)
+    assert rc == 2 and "--out" in err and "Traceback" not in err, err
+    if kind == "foreign_folder":
+        assert (out / "notes.txt").read_text() == "mine" and (out / "diagnosis.json").read_text() == "{}"
+        assert "notes.txt" in err
+    if kind == "file":
+        assert out.read_text() == "a file"
 
 
 def test_noise_only_answers_none(tmp_path, capsys):

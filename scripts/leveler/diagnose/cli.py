@@ -25,7 +25,9 @@ def parse_args(argv):
     ap.add_argument("--features", metavar="JSON", action="append",
                     help="published event figures instead of traces (see docs/diagnosis.md); "
                          "repeat to hold out the later files")
-    ap.add_argument("--out", required=True, metavar="DIR", help="output folder (created; replaced whole)")
+    ap.add_argument("--out", required=True, metavar="DIR",
+                    help="output folder: new, empty, or an earlier output of leveler-diagnose (replaced); "
+                         "checked before the diagnosis runs")
     ap.add_argument("--mode", choices=("auto", "replay", "closed_loop"), default="auto",
                     help="replay logged commands (auto when the log has them) or firmware in the loop")
     ap.add_argument("--effects", default=",".join(fx.NAMES),
@@ -50,7 +52,50 @@ def main(argv=None):
         return 2
 
 
+OUT_FILES = ("diagnosis.json", "report.html")   # all that leveler-diagnose writes into --out
+
+
+def prepare_out(out):
+    """Checks --out before any work and returns a private temporary folder
+    beside it (proof that the parent is writable). --out must not exist, be
+    empty, or hold only what an earlier run wrote: never delete other files."""
+    if os.path.lexists(out) and not os.path.isdir(out):
+        raise DiagnoseInputError(f"--out {out}: exists and is not a folder")
+    if os.path.isdir(out):
+        foreign = sorted(set(os.listdir(out)) - set(OUT_FILES))
+        if foreign:
+            raise DiagnoseInputError(f"--out {out}: folder holds files leveler-diagnose did not write "
+                                     f"({', '.join(foreign[:3])}{', ...' if len(foreign) > 3 else ''}); "
+                                     f"give a new or empty folder")
+    parent = os.path.dirname(out)
+    try:
+        os.makedirs(parent, exist_ok=True)
+        return tempfile.mkdtemp(prefix=".diagnose-", dir=parent)
+    except OSError as e:
+        raise DiagnoseInputError(f"--out {out}: cannot write there: {e.strerror}")
+
+
+def publish_out(tmp, out):
+    """tmp -> out; an earlier output's own files go, nothing else (checked again)."""
+    if os.path.isdir(out):
+        appeared = set(os.listdir(out)) - set(OUT_FILES)
+        if appeared:
+            raise DiagnoseInputError(f"--out {out}: files appeared during the run: {', '.join(sorted(appeared))}")
+        for name in os.listdir(out):
+            os.unlink(os.path.join(out, name))
+    os.rename(tmp, out)   # onto an empty folder or a free name
+
+
 def run(a, say):
+    out = os.path.abspath(a.out)
+    tmp = prepare_out(out)
+    try:
+        return diagnose_into(a, say, tmp, out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def diagnose_into(a, say, tmp, out):
     from . import model, pipeline, report, runs
     candidates = [c.strip() for c in a.effects.split(",") if c.strip()]
     for c in candidates:
@@ -84,19 +129,9 @@ def run(a, say):
     result, traces = pipeline.diagnose(a.simulator, sim, a.config, calib, holdout, mode, candidates,
                                        a.jobs, say,
                                        {"starts": 8, "max_nfev": 15, "polish": 1} if a.fast else None)
-    out = os.path.abspath(a.out)
-    parent = os.path.dirname(out)
-    os.makedirs(parent, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=".diagnose-", dir=parent)
-    try:
-        report.write_json(os.path.join(tmp, "diagnosis.json"), result)
-        report.write_html(os.path.join(tmp, "report.html"), result, traces)
-        if os.path.isdir(out):
-            shutil.rmtree(out)
-        os.rename(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    report.write_json(os.path.join(tmp, OUT_FILES[0]), result)
+    report.write_html(os.path.join(tmp, OUT_FILES[1]), result, traces)
+    publish_out(tmp, out)
     say(f"effect: {result['effect']}; held-out shrink {result['shrink_pct']:.1f}%; "
         f"{result['seconds']:.1f} s; wrote {out}/diagnosis.json and report.html")
     return 0
