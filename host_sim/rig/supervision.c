@@ -271,87 +271,97 @@ static int reply_exception(rig_supervision *sv, client *c, const uint8_t *req, i
     return send(c->fd, rsp, sizeof rsp, MSG_NOSIGNAL) == (ssize_t)sizeof rsp ? 0 : -1;
 }
 
+static int reply_values(rig_supervision *sv, const uint8_t *req, int req_len)
+{
+    return modbus_reply(sv->ctx, req, req_len, sv->mapping) < 0 ? -1 : 0;
+}
+
+/* FC 01-04: from the register map. */
+static int handle_read(rig_supervision *sv, client *c, const uint8_t *req, int req_len)
+{
+    static uint16_t values[MODBUS_MAX_READ_BITS];
+    const uint8_t *pdu = req + MBAP_LEN;
+    int function = pdu[0];
+    if (req_len - MBAP_LEN != 5)
+        return reply_exception(sv, c, req, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    uint16_t addr = be16(pdu + 1), count = be16(pdu + 3);
+    bool bits = function <= MODBUS_FC_READ_DISCRETE_INPUTS;
+    if (count < 1 || count > (bits ? MODBUS_MAX_READ_BITS : MODBUS_MAX_READ_REGISTERS))
+        return reply_exception(sv, c, req, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    leveler_table table = table_of(function);
+    leveler_reg_status st = leveler_regs_read(table, addr, count, values);
+    if (st != LEVELER_REG_OK)
+        return reply_exception(sv, c, req, exception_for(st));
+    refresh_mapping(sv, table, addr, count, values);
+    return reply_values(sv, req, req_len);
+}
+
+/* The values a write PDU carries, into values[]; false if the PDU is malformed. */
+static bool write_values(const uint8_t *pdu, int pdu_len, uint16_t *values, uint16_t *count)
+{
+    int function = pdu[0];
+    *count = 1;
+    if (pdu_len < 5)
+        return false;
+    if (function == MODBUS_FC_WRITE_SINGLE_COIL) {
+        uint16_t v = be16(pdu + 3);
+        values[0] = v ? 1 : 0;
+        return pdu_len == 5 && (v == 0xFF00 || v == 0x0000);
+    }
+    if (function == MODBUS_FC_WRITE_SINGLE_REGISTER) {
+        values[0] = be16(pdu + 3);
+        return pdu_len == 5;
+    }
+    *count = be16(pdu + 3);
+    bool coils = function == MODBUS_FC_WRITE_MULTIPLE_COILS;
+    int bytes = coils ? (*count + 7) / 8 : *count * 2;
+    if (*count < 1 || *count > (coils ? MODBUS_MAX_WRITE_BITS : MODBUS_MAX_WRITE_REGISTERS) || pdu_len < 6 ||
+        pdu[5] != bytes || pdu_len != 6 + pdu[5])
+        return false;
+    for (uint16_t i = 0; i < *count; i++)
+        values[i] = coils ? (pdu[6 + i / 8] >> (i % 8)) & 1u : be16(pdu + 6 + 2 * i);
+    return true;
+}
+
+/* FC 05, 06, 15, 16: through the firmware's validation, all or nothing. */
+static int handle_write(rig_supervision *sv, client *c, const uint8_t *req, int req_len)
+{
+    static uint16_t values[MODBUS_MAX_WRITE_BITS];
+    const uint8_t *pdu = req + MBAP_LEN;
+    if (sv->read_only || !c->may_write) {
+        sv->stats.refused_writes += !sv->read_only;
+        return reply_exception(sv, c, req, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
+    }
+    uint16_t count;
+    if (!write_values(pdu, req_len - MBAP_LEN, values, &count))
+        return reply_exception(sv, c, req, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    leveler_reg_status st = leveler_regs_write(table_of(pdu[0]), be16(pdu + 1), count, values, NULL);
+    if (st != LEVELER_REG_OK)
+        return reply_exception(sv, c, req, exception_for(st));
+    /* Accepted: libmodbus builds the echo reply (it also stores the values
+     * in the mapping, which is refreshed before every read anyway). */
+    return reply_values(sv, req, req_len);
+}
+
 /* One whole request (MBAP + PDU). Returns -1 if the client must go. */
 static int handle_request(rig_supervision *sv, client *c, const uint8_t *req, int req_len)
 {
     modbus_set_socket(sv->ctx, c->fd);
     sv->stats.requests++;
-    const uint8_t *pdu = req + MBAP_LEN;
-    int pdu_len = req_len - MBAP_LEN;
-    int function = pdu[0];
-    int rc;
-    static uint16_t values[MODBUS_MAX_READ_BITS];
-
-    switch (function) {
+    switch (req[MBAP_LEN]) {
     case MODBUS_FC_READ_COILS:
     case MODBUS_FC_READ_DISCRETE_INPUTS:
     case MODBUS_FC_READ_HOLDING_REGISTERS:
-    case MODBUS_FC_READ_INPUT_REGISTERS: {
-        if (pdu_len != 5)
-            goto bad_value;
-        uint16_t addr = be16(pdu + 1), count = be16(pdu + 3);
-        bool bits = function <= MODBUS_FC_READ_DISCRETE_INPUTS;
-        if (count < 1 || count > (bits ? MODBUS_MAX_READ_BITS : MODBUS_MAX_READ_REGISTERS))
-            goto bad_value;
-        leveler_table table = table_of(function);
-        leveler_reg_status st = leveler_regs_read(table, addr, count, values);
-        if (st != LEVELER_REG_OK) {
-            return reply_exception(sv, c, req, exception_for(st));
-        }
-        refresh_mapping(sv, table, addr, count, values);
-        rc = modbus_reply(sv->ctx, req, req_len, sv->mapping);
-        return rc < 0 ? -1 : 0;
-    }
+    case MODBUS_FC_READ_INPUT_REGISTERS:
+        return handle_read(sv, c, req, req_len);
     case MODBUS_FC_WRITE_SINGLE_COIL:
     case MODBUS_FC_WRITE_SINGLE_REGISTER:
     case MODBUS_FC_WRITE_MULTIPLE_COILS:
-    case MODBUS_FC_WRITE_MULTIPLE_REGISTERS: {
-        if (sv->read_only || !c->may_write) {
-            sv->stats.refused_writes += !sv->read_only;
-            return reply_exception(sv, c, req, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
-        }
-        if (pdu_len < 5)
-            goto bad_value;
-        uint16_t addr = be16(pdu + 1), count = 1;
-        if (function == MODBUS_FC_WRITE_SINGLE_COIL) {
-            uint16_t v = be16(pdu + 3);
-            if (pdu_len != 5 || (v != 0xFF00 && v != 0x0000))
-                goto bad_value;
-            values[0] = v ? 1 : 0;
-        } else if (function == MODBUS_FC_WRITE_SINGLE_REGISTER) {
-            if (pdu_len != 5)
-                goto bad_value;
-            values[0] = be16(pdu + 3);
-        } else if (function == MODBUS_FC_WRITE_MULTIPLE_COILS) {
-            count = be16(pdu + 3);
-            if (count < 1 || count > MODBUS_MAX_WRITE_BITS || pdu_len < 6 || pdu[5] != (count + 7) / 8 ||
-                pdu_len != 6 + pdu[5])
-                goto bad_value;
-            for (uint16_t i = 0; i < count; i++)
-                values[i] = (pdu[6 + i / 8] >> (i % 8)) & 1u;
-        } else {
-            count = be16(pdu + 3);
-            if (count < 1 || count > MODBUS_MAX_WRITE_REGISTERS || pdu_len < 6 || pdu[5] != count * 2 ||
-                pdu_len != 6 + pdu[5])
-                goto bad_value;
-            for (uint16_t i = 0; i < count; i++)
-                values[i] = be16(pdu + 6 + 2 * i);
-        }
-        /* Through the firmware's validation, all or nothing. */
-        leveler_reg_status st = leveler_regs_write(table_of(function), addr, count, values, NULL);
-        if (st != LEVELER_REG_OK) {
-            return reply_exception(sv, c, req, exception_for(st));
-        }
-        /* Accepted: libmodbus builds the echo reply (it also stores the values
-         * in the mapping, which is refreshed before every read anyway). */
-        rc = modbus_reply(sv->ctx, req, req_len, sv->mapping);
-        return rc < 0 ? -1 : 0;
-    }
+    case MODBUS_FC_WRITE_MULTIPLE_REGISTERS:
+        return handle_write(sv, c, req, req_len);
     default:
         return reply_exception(sv, c, req, MODBUS_EXCEPTION_ILLEGAL_FUNCTION);
     }
-bad_value:
-    return reply_exception(sv, c, req, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
 }
 
 /* Handles up to FRAMES_PER_CLIENT_PER_CALL whole frames, already buffered
