@@ -14,6 +14,8 @@ import signal
 import socket
 import time
 
+import pytest
+
 import rigproc as rp
 
 WATCHDOG_MS = 200
@@ -51,34 +53,22 @@ def test_watchdog_time_written_at_start(tmp_path, plant):
         module.close()
 
 
-def test_sigkill_leaves_coils_safe_within_watchdog_time(tmp_path, plant):
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGSTOP], ids=["SIGKILL", "SIGSTOP"])
+def test_dead_or_stopped_rig_leaves_coils_safe_within_watchdog_time(tmp_path, plant, sig):
     module = plant.client()
     rig = rp.Rig(tmp_path, plant, overrides=WATCHDOG).start()
     try:
         start_charging(rig, module)
         trips = module.read_input_registers(rp.MODULE_IR_WATCHDOG_TRIPS, count=1).registers[0]
-        os.kill(rig.proc.pid, signal.SIGKILL)
+        os.kill(rig.proc.pid, sig)
         ms = ms_until_safe(module)
-        print(f"SIGKILL: coils safe {ms:.0f} ms later (watchdog {WATCHDOG_MS} ms)")
+        print(f"{sig.name}: coils safe {ms:.0f} ms later (watchdog {WATCHDOG_MS} ms)")
         assert ms <= WATCHDOG_MS + SLACK_MS
         assert module.read_input_registers(rp.MODULE_IR_WATCHDOG_TRIPS, count=1).registers[0] == trips + 1
-    finally:
-        rig.stop()
-        module.close()
-
-
-def test_sigstop_leaves_coils_safe_and_the_rig_takes_over_again(tmp_path, plant):
-    module = plant.client()
-    rig = rp.Rig(tmp_path, plant, overrides=WATCHDOG).start()
-    try:
-        start_charging(rig, module)
-        os.kill(rig.proc.pid, signal.SIGSTOP)
-        ms = ms_until_safe(module)
-        print(f"SIGSTOP: coils safe {ms:.0f} ms later (watchdog {WATCHDOG_MS} ms)")
-        assert ms <= WATCHDOG_MS + SLACK_MS
-        os.kill(rig.proc.pid, signal.SIGCONT)
-        # Still in manual with both on: the rig's next refresh writes them again.
-        assert rp.wait_until(lambda: coils(module)[:2] == [True, True], 3.0)
+        if sig == signal.SIGSTOP:
+            os.kill(rig.proc.pid, signal.SIGCONT)
+            # Still in manual with both on: the rig's next refresh writes them again.
+            assert rp.wait_until(lambda: coils(module)[:2] == [True, True], 3.0)
     finally:
         rig.stop()
         module.close()
