@@ -5,10 +5,16 @@ kernel sends SIGXFSZ and write() fails with EFBIG, as ENOSPC on a full disk).
 The rig must run to the end and exit 0 with the coils safe, flag log_fault
 and count log_rows_dropped over supervision, and leave a log the project's
 own reader (leveler.runlog) accepts, whose rows plus the dropped ones are
-every tick."""
+every tick. A second test fills a real (tmpfs) disk and frees it again."""
 
+import os
 import re
 import resource
+import subprocess
+import time
+
+import numpy as np
+import pytest
 
 import rigproc as rp
 from leveler import runlog
@@ -53,3 +59,47 @@ def test_rig_under_a_file_size_limit(tmp_path):
     assert size <= LIMIT
     assert dropped > 0 and rows + dropped == ticks
     assert log.t_s[-1] < 40.0 and (log.t_s[1:] > log.t_s[:-1]).all()
+
+
+def test_rig_on_a_full_tmpfs_then_space_returns(tmp_path, plant):
+    """A real full disk (ENOSPC): a 64 KiB tmpfs in a private mount namespace
+    (unshare -rm), 48 KiB of it taken by a filler file. The rig (real time)
+    fills the rest, drops rows whole, and when the filler is deleted ("space
+    returns") writes again, starting with a complete line."""
+    disk = tmp_path / "disk"
+    disk.mkdir()
+    out = tmp_path / "copied.csv"
+    probe = subprocess.run(["unshare", "-rm", "sh", "-c", f"mount -t tmpfs -o size=64k none {disk}"],
+                           capture_output=True, text=True, timeout=10)
+    if probe.returncode != 0:
+        pytest.skip(f"no private tmpfs here (unshare -rm: {probe.stderr.strip()}); the file-size limit test covers EFBIG")
+    rig = rp.Rig(tmp_path, plant, overrides={"rig": {"run_seconds": 8}, "log": {"path": disk / "rig.csv"}})
+    script = (f'mount -t tmpfs -o size=64k none {disk} && head -c 49152 /dev/zero > {disk}/filler && '
+              f'{rp.RIG} --config {rig.config_path} 2>{tmp_path}/rig.out; rc=$?; cp {disk}/rig.csv {out}; exit $rc')
+    shell = subprocess.Popen(["unshare", "-rm", "sh", "-c", script])
+    try:
+        rig.port = rp.read_port(rig.port_file, shell)
+        sv = rig.client()
+
+        def log_fault():
+            return sv.read_discrete_inputs(rp.DI_LOG_FAULT, count=1).bits[0]
+        assert rp.wait_until(log_fault, 8.0), "the tmpfs never filled"
+        time.sleep(0.5)   # full for half a second: ~50 rows to drop
+        assert log_fault()
+        dropped_full = rp.u32(sv.read_input_registers(rp.IR_LOG_ROWS_DROPPED, count=2).registers)
+        os.unlink(f"/proc/{shell.pid}/root{disk}/filler")   # the shell's mount namespace
+        assert rp.wait_until(lambda: not log_fault(), 3.0), "logging did not resume when space returned"
+        sv.close()
+        assert shell.wait(30) == 0
+    finally:
+        rp.stop_process(shell)
+    m = re.search(r"stopped after (\d+) ticks.* (\d+) log rows dropped", (tmp_path / "rig.out").read_text())
+    ticks, dropped = int(m.group(1)), int(m.group(2))
+    log = runlog.read(out)
+    rows = len(log.t_s)
+    gaps = np.diff(log.t_s)
+    print(f"64 KiB tmpfs, 48 KiB taken: {ticks} ticks, {rows} rows, {dropped} dropped whole while full "
+          f"({dropped_full} when space returned), longest gap {gaps.max():.2f} s; reader accepts the log")
+    assert dropped > 0 and rows + dropped == ticks
+    assert dropped >= 40 and gaps.max() > 0.4          # one gap: the rows dropped while full
+    assert rows - (np.argmax(gaps) + 1) > 100          # and whole rows again after it
