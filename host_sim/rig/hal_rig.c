@@ -49,6 +49,15 @@ uint32_t hal_now_ms(void)
     return (uint32_t)ms; /* wraps at 2^32 as the contract says */
 }
 
+double rig_hal_now_s(void)
+{
+    if (bound_clock == RIG_CLOCK_LOCKSTEP)
+        return hal_now_ms() / 1000.0;
+    struct timespec now;
+    clock_gettime(CLOCK_MONOTONIC, &now);
+    return (double)(now.tv_sec - start.tv_sec) + 1e-9 * (double)(now.tv_nsec - start.tv_nsec);
+}
+
 /* No serial supervision link on the rig: Modbus TCP serves the register map. */
 size_t hal_serial_read(uint8_t *buf, size_t max_len)
 {

@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "modbus_link.h"
 
@@ -107,11 +108,21 @@ int rig_modbus_outputs_open(const rig_config *cfg, rig_link *link, rig_output_ba
     out->impl = m;
     out->apply = apply;
     out->close = close_all;
-    /* Safe outputs first (also after a restart by systemd), then arm the watchdog. */
+    /* Safe outputs first (also after a restart by systemd), then arm the
+     * watchdog. A module slow to answer (a timeout of a few ms, a busy
+     * machine) gets 1.5 s (one reconnect) before the rig gives up. */
     const bool off[HAL_OUT_COUNT] = {false};
-    if (apply(m, off, err, err_len) != 0 || (cfg->output_watchdog_ms > 0 && write_watchdog(cfg, link, err, err_len) != 0)) {
-        free(m);
-        return -1;
+    int rc = -1;
+    for (int attempt = 0; attempt < 150 && rc != 0; attempt++) {
+        if (attempt > 0) {
+            struct timespec pause = {0, 10 * 1000000L};
+            nanosleep(&pause, NULL);
+        }
+        rc = apply(m, off, err, err_len);
+        if (rc == 0 && cfg->output_watchdog_ms > 0)
+            rc = write_watchdog(cfg, link, err, err_len);
     }
-    return 0;
+    if (rc != 0)
+        free(m);
+    return rc;
 }

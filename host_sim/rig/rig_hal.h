@@ -15,5 +15,9 @@
 
 void rig_hal_bind(rig_sensors *sensors, rig_clock clock);
 void rig_hal_wanted_outputs(bool out[HAL_OUT_COUNT]);
+/* hal_now_ms()'s clock in seconds at full resolution, for the run log: a late
+ * tick and the on-time one after it can fall in the same millisecond, and the
+ * log's time column must still increase. */
+double rig_hal_now_s(void);
 
 #endif

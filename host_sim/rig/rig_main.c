@@ -129,7 +129,7 @@ static void log_tick(rig *r, const bool out[HAL_OUT_COUNT])
         load_n = cfg->log_load_n;
     }
     runlog_row row = {
-        .t_s = hal_now_ms() / 1000.0,
+        .t_s = rig_hal_now_s(),
         .height_m = reg32(m) * 1e-6,
         .p_spring_pa = p[0],
         .p_pipe_pa = p[1],

@@ -39,10 +39,11 @@ def wait_until(predicate, timeout_s, step_s=0.01):
         time.sleep(step_s)
 
 
-def read_port(path: Path, proc: subprocess.Popen, timeout_s=20.0) -> int:
+def read_port(path: Path, proc: subprocess.Popen, timeout_s=20.0, output: Path = None) -> int:
     def ready():
         if proc.poll() is not None:
-            raise RuntimeError(f"{proc.args[0]} exited with {proc.returncode} before listening")
+            said = output.read_text() if output and output.exists() else ""
+            raise RuntimeError(f"{proc.args[0]} exited with {proc.returncode} before listening: {said}")
         try:
             return int(path.read_text().strip() or 0)
         except (OSError, ValueError):
@@ -72,7 +73,7 @@ class Plant:
         self.proc = subprocess.Popen([PLANT_SERVER, "--config", str(config), "--port", "0", "--port-file",
                                       str(port_file), "--clock", clock, "--max-seconds", "120"],
                                      stdout=self.out, stderr=subprocess.STDOUT)
-        self.port = read_port(port_file, self.proc)
+        self.port = read_port(port_file, self.proc, output=tmp / "plant.out")
 
     def client(self) -> ModbusTcpClient:
         return connect(self.port)
@@ -117,7 +118,7 @@ class Rig:
         self.proc = subprocess.Popen([RIG, "--config", str(self.config_path)], stdout=self.out,
                                      stderr=subprocess.STDOUT, preexec_fn=preexec_fn, env=env)
         if wait_port:
-            self.port = read_port(self.port_file, self.proc)
+            self.port = read_port(self.port_file, self.proc, output=self.tmp / "rig.out")
         return self
 
     def client(self) -> ModbusTcpClient:
