@@ -102,6 +102,7 @@ typedef struct {
     rig_supervision *sv;
     runlog *log;
     double last_load_n;
+    double last_t_s;           /* time of the last logged row: the log's time must increase */
     bool log_fault_reported;
     uint64_t ticks, overruns;
     long long notify_every_ns; /* systemd watchdog: 0 = not asked for */
@@ -140,8 +141,10 @@ static void log_tick(rig *r, const bool out[HAL_OUT_COUNT])
         .vent_valve = out[HAL_OUT_VENT_VALVE],
         .acc_valve = cfg->pin[HAL_OUT_ACC_VALVE].configured ? out[HAL_OUT_ACC_VALVE] : -1,
     };
-    if (!isfinite(row.load_n))
+    /* No load yet, or lockstep time that did not advance (a failed step): nothing new to log. */
+    if (!isfinite(row.load_n) || row.t_s <= r->last_t_s)
         return;
+    r->last_t_s = row.t_s;
     if (runlog_write(r->log, &row) != 0 && !r->log_fault_reported)
         fprintf(stderr, "leveler-rig: run log %s: %s: dropping rows until it can be written (control goes on)\n",
                 cfg->log_path, strerror(errno));
@@ -231,6 +234,7 @@ static int rig_open(rig *r)
 {
     char err[512];
     r->last_load_n = NAN;
+    r->last_t_s = -1.0;
     r->link = rig_link_open(&r->cfg, err, sizeof err);
     if (r->link != NULL)
         r->sensors = rig_sensors_open(&r->cfg, r->link, err, sizeof err);
