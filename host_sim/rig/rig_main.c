@@ -346,7 +346,7 @@ static int rig_close(rig *r)
     if (r->outputs_open)
         r->outputs.close(r->outputs.impl);
     int rc = 0;
-    unsigned long long dropped = r->log ? runlog_get_stats(r->log).rows_dropped : 0;
+    runlog_stats ls_log = r->log ? runlog_get_stats(r->log) : (runlog_stats){0, 0, 0};
     if (r->log && runlog_close(r->log) != 0) {
         fprintf(stderr, "leveler-rig: closing run log %s: %s\n", r->cfg.log_path, strerror(errno));
         rc = 1;
@@ -358,9 +358,9 @@ static int rig_close(rig *r)
     rig_link_close(r->link);
     fprintf(stderr,
             "leveler-rig: stopped after %llu ticks, %llu overruns, %u failed sensor scans, %u failed module requests, "
-            "%u reconnects, %llu log rows dropped\n",
+            "%u reconnects, %llu log rows written, %llu dropped\n",
             (unsigned long long)r->ticks, (unsigned long long)r->overruns, failed_scans, ls.failed_requests,
-            ls.reconnects, dropped);
+            ls.reconnects, ls_log.rows_written, ls_log.rows_dropped);
     return rc;
 }
 
