@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "internal.h"
+#include "leveler/alg3.h"
 #include "leveler/control.h"
 #include "leveler/hal.h"
 #include "leveler/sensors.h"
@@ -12,6 +13,7 @@
 
 static leveler_sensors g_sensors;
 static leveler_supervisor g_supervisor;
+static leveler_alg3 g_alg3;
 static leveler_status g_status;
 static leveler_command g_command;
 static uint32_t g_start_ms;
@@ -77,6 +79,7 @@ void leveler_app_init(void)
     g_ticked = false;
     leveler_sensors_init(&g_sensors, g_start_ms);
     leveler_supervisor_init(&g_supervisor);
+    leveler_alg3_init(&g_alg3, g_start_ms);
     memset(&g_command, 0, sizeof(g_command));
     /* hardware facts the board may report before init */
     bool clock_fault = g_status.clock_fault;
@@ -89,6 +92,21 @@ void leveler_app_init(void)
     g_status.outputs_safe = true;
 }
 
+/* Algorithm 3 keeps state between ticks and learns into the settings. */
+static leveler_control_state alg3_decide(const leveler_settings *set, const leveler_measurements *m, uint32_t now_ms,
+                                         leveler_outputs *request)
+{
+    static leveler_settings learnt;
+    bool changed = false;
+    bool held = g_supervisor.outputs_safe || set->mode != (uint16_t)LEVELER_MODE_AUTO;
+    leveler_control_state band = leveler_alg3_step(&g_alg3, set, m->height_um, m->p_spring_pa, m->p_pipe_pa,
+                                                   m->p_acc_pa, now_ms, held, request, &learnt, &changed);
+    if (changed) {
+        (void)leveler_settings_apply(&learnt); /* validated; a refused value leaves the old one */
+    }
+    return band;
+}
+
 void leveler_app_tick(void)
 {
     const leveler_settings *set = leveler_settings_current();
@@ -99,7 +117,7 @@ void leveler_app_tick(void)
 
     /* 1. sample */
     leveler_sensors_sample(&g_sensors, set, now_ms);
-    uint16_t used = leveler_control_channels_used(set->algorithm);
+    uint16_t used = leveler_control_channels_used(set->algorithm, set->alg3_accumulator != 0u);
     leveler_measurements m = {
         .height_um = g_sensors.ch[HAL_ADC_HEIGHT].value,
         .p_spring_pa = g_sensors.ch[HAL_ADC_P_SPRING].value,
@@ -112,9 +130,11 @@ void leveler_app_tick(void)
 
     /* 2. control (auto) or manual request, then the supervisor's word */
     leveler_outputs request;
-    leveler_control_state band = leveler_control_decide(set->algorithm, set->band_lower_um, set->band_upper_um,
-                                                        set->acc_charge_max_pa, m.height_um, m.p_pipe_pa,
-                                                        m.p_acc_pa, &request);
+    leveler_control_state band =
+        (set->algorithm == (uint16_t)LEVELER_ALGO_HYSTERESIS_AWARE)
+            ? alg3_decide(set, &m, now_ms, &request)
+            : leveler_control_decide(set->algorithm, set->band_lower_um, set->band_upper_um, set->acc_charge_max_pa,
+                                     m.height_um, m.p_pipe_pa, m.p_acc_pa, &request);
     if (set->mode == (uint16_t)LEVELER_MODE_MANUAL) {
         request.compressor = g_command.manual_compressor;
         request.spring_valve = g_command.manual_spring_valve;
@@ -123,6 +143,7 @@ void leveler_app_tick(void)
     }
     leveler_outputs out;
     leveler_supervisor_step(&g_supervisor, set, set->mode, &m, &request, now_ms, dt_ms, &out);
+    leveler_alg3_driven(&g_alg3, &out, now_ms);
 
     /* 3. publish, then actuate every output */
     g_status.height_um = m.height_um;
@@ -144,6 +165,8 @@ void leveler_app_tick(void)
     g_status.compressor_run_ms = g_supervisor.compressor_run_ms;
     g_status.cooldown_left_ms = g_supervisor.cooldown_left_ms;
     g_status.uptime_ms = now_ms - g_start_ms;
+    g_status.alg3_phase = g_alg3.phase;
+    g_status.alg3_moves = g_alg3.moves;
     g_status.compressor_on = out.compressor;
     g_status.spring_valve_open = out.spring_valve;
     g_status.vent_valve_open = out.vent_valve;

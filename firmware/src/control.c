@@ -73,10 +73,17 @@ static leveler_control_state accumulator(int32_t lower_um, int32_t upper_um, int
     return LEVELER_STATE_IN_BAND;
 }
 
-uint16_t leveler_control_channels_used(uint16_t algorithm)
+uint8_t leveler_outputs_bits(const leveler_outputs *o)
+{
+    return (uint8_t)((o->compressor ? 1u : 0u) | (o->spring_valve ? 2u : 0u) | (o->vent_valve ? 4u : 0u) |
+                     (o->acc_valve ? 8u : 0u));
+}
+
+uint16_t leveler_control_channels_used(uint16_t algorithm, bool acc_fitted)
 {
     const uint16_t all = (uint16_t)((1u << HAL_ADC_COUNT) - 1u);
-    if (algorithm == (uint16_t)LEVELER_ALGO_NO_ACCUMULATOR) {
+    if (algorithm == (uint16_t)LEVELER_ALGO_NO_ACCUMULATOR ||
+        (algorithm == (uint16_t)LEVELER_ALGO_HYSTERESIS_AWARE && !acc_fitted)) {
         return (uint16_t)(all & ~(1u << HAL_ADC_P_ACC));
     }
     return all;

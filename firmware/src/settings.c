@@ -60,6 +60,10 @@ uint16_t leveler_settings_check(const leveler_settings *s)
     if (s->acc_charge_max_pa > s->overpressure_limit_pa) {
         return LEVELER_REASON_LIMIT_ORDER;
     }
+    /* Learnt hysteresis lines: the platform breaks away upwards above where it comes down. */
+    if (s->alg3_up_pa != 0 && s->alg3_down_pa != 0 && s->alg3_down_pa >= s->alg3_up_pa) {
+        return LEVELER_REASON_LIMIT_ORDER;
+    }
     for (unsigned c = 0; c < HAL_ADC_COUNT; c++) {
         const leveler_calibration *cal = &s->calibration[c];
         if (cal->raw_lo == cal->raw_hi || cal->eng_lo == cal->eng_hi) {

@@ -23,6 +23,9 @@ static int32_t max3(int32_t a, int32_t b, int32_t c)
 
 static unsigned counter_slot(unsigned code)
 {
+    if (code == (unsigned)LEVELER_FAULT_CHATTER) {
+        return 4u;
+    }
     return (code >= (unsigned)LEVELER_FAULT_SENSOR_HEIGHT) ? 3u : code - 1u;
 }
 
@@ -30,7 +33,7 @@ static unsigned counter_slot(unsigned code)
 static void latch(leveler_supervisor *sv, uint16_t active_now)
 {
     uint16_t rising = (uint16_t)(active_now & (uint16_t)~sv->active_bits);
-    for (unsigned code = 1; code <= (unsigned)LEVELER_FAULT_SENSOR_P_ACC; code++) {
+    for (unsigned code = 1; code <= (unsigned)LEVELER_FAULT_CHATTER; code++) {
         if ((rising & LEVELER_FAULT_BIT(code)) != 0u) {
             unsigned slot = counter_slot(code);
             sv->fault_count[slot] = leveler_sat_inc_u16(sv->fault_count[slot]);
@@ -58,6 +61,14 @@ static void stall_arm(leveler_supervisor *sv, const leveler_measurements *m, uin
     sv->stall_ref_p_pipe_pa = m->p_pipe_pa;
     sv->stall_ref_p_spring_pa = m->p_spring_pa;
     sv->stall_ref_height_um = m->height_um;
+}
+
+/* Rule 5: count this tick's driven outputs; true above the set rate. */
+static bool chatter_exceeded(leveler_supervisor *sv, const leveler_settings *set, const leveler_outputs *out,
+                             uint32_t now_ms)
+{
+    uint16_t count = leveler_chatter_step(&sv->chatter, leveler_outputs_bits(out), now_ms);
+    return set->chatter_max_per_min != 0u && count > set->chatter_max_per_min;
 }
 
 void leveler_supervisor_step(leveler_supervisor *sv, const leveler_settings *set, uint16_t mode,
@@ -143,6 +154,12 @@ void leveler_supervisor_step(leveler_supervisor *sv, const leveler_settings *set
         }
     } else {
         sv->stall_armed = false;
+    }
+
+    if (chatter_exceeded(sv, set, out, now_ms)) {
+        active = (uint16_t)(active | LEVELER_FAULT_BIT(LEVELER_FAULT_CHATTER));
+        memset(out, 0, sizeof(*out));
+        safe = true;
     }
 
     latch(sv, active);

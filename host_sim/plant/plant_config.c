@@ -106,7 +106,7 @@ const field fields[] = {
     {"scenario", "step_on", K_TIME, T_DOUBLE, CF(step_on_s), 0, 1e6},
     {"scenario", "step_off", K_TIME, T_DOUBLE, CF(step_off_s), 0, 1e6},
     {"scenario", "end", K_TIME, T_DOUBLE, CF(end_s), 0.01, 1e7},
-    {"controller", "algorithm", K_INT, T_INT, CF(algorithm), 1, 2},
+    {"controller", "algorithm", K_INT, T_INT, CF(algorithm), 1, 3},
     {"controller", "band_lower", K_LENGTH, T_DOUBLE, CF(band_lower_m), 0, 1},
     {"controller", "band_upper", K_LENGTH, T_DOUBLE, CF(band_upper_m), 0, 1},
     {"sensors", "height_lo", K_COUNTS, T_DOUBLE, SP(height_lo_counts), 0, 4095},

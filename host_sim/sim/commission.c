@@ -44,7 +44,8 @@ static int write_block(uint16_t addr, const uint16_t *w, uint16_t n, const char 
     return 0;
 }
 
-/* What a commissioning engineer writes: calibration, band, algorithm, accumulator charge. */
+/* What a commissioning engineer writes: calibration, band, algorithm (and for algorithm 3 whether an
+ * accumulator is fitted), accumulator charge. */
 int sim_commission(const plant_config *cfg, int algorithm, char *err, size_t len)
 {
     const plant_sensor_params *s = &cfg->sensors;
@@ -69,6 +70,9 @@ int sim_commission(const plant_config *cfg, int algorithm, char *err, size_t len
     if (write_block(LEVELER_HR_BAND_LOWER_UM, band, 4, "band", err, len) != 0)
         return -1;
     if (write_u16(LEVELER_HR_ALGORITHM, (uint16_t)algorithm, "algorithm", err, len) != 0)
+        return -1;
+    /* Algorithm 3 is told whether the rig has an accumulator (the others know by their number). */
+    if (write_u16(LEVELER_HR_ALG3_ACCUMULATOR, cfg->plant.acc_type != PLANT_ACC_NONE, "alg3_accumulator", err, len) != 0)
         return -1;
     uint16_t charge[2];
     put_i32(charge, round_i32(cfg->plant.acc_charge_pa));

@@ -1,7 +1,7 @@
 /*
  * leveler-sim: the unchanged firmware against the plant model.
  *
- *   leveler-sim --config FILE [--schedule FILE] [--algorithm 1|2] --log run.csv
+ *   leveler-sim --config FILE [--schedule FILE] [--algorithm 1|2|3] --log run.csv
  *               [--summary run.json] [--plot run.png] [--units thesis|si] [--end-s S]
  *   leveler-sim --dump-config [--config FILE]
  *
@@ -32,11 +32,12 @@
 static void usage(FILE *f)
 {
     fprintf(f,
-            "usage: leveler-sim --config FILE [--schedule FILE] [--algorithm 1|2] --log run.csv\n"
+            "usage: leveler-sim --config FILE [--schedule FILE] [--algorithm 1|2|3] --log run.csv\n"
             "                   [--summary run.json] [--plot run.png] [--units thesis|si] [--end-s S]\n"
             "  --config FILE      plant, sensors, controller settings, scenario (docs/config-format.md)\n"
             "  --schedule FILE    load steps, CSV t_s,load_n (replaces the config's scenario)\n"
-            "  --algorithm 1|2    1 no accumulator, 2 accumulator (default: the config's)\n"
+            "  --algorithm 1|2|3  1 no accumulator, 2 accumulator, 3 hysteresis-aware (docs/controller.md)\n"
+            "                     (default: the config's)\n"
             "  --log FILE         run log, one row per 10 ms tick (\"-\" = stdout)\n"
             "  --summary FILE     event figures as JSON (runs python -m leveler.report)\n"
             "  --plot FILE        figure of the run (runs python -m leveler.report)\n"
@@ -173,8 +174,8 @@ static int parse_option(sim_args *a, const char *opt, const char *v)
         }
         a->units = v;
     } else if (strcmp(opt, "--algorithm") == 0) {
-        if (strcmp(v, "1") != 0 && strcmp(v, "2") != 0) {
-            fprintf(stderr, "leveler-sim: --algorithm must be 1 or 2, not '%s'\n", v);
+        if (strcmp(v, "1") != 0 && strcmp(v, "2") != 0 && strcmp(v, "3") != 0) {
+            fprintf(stderr, "leveler-sim: --algorithm must be 1, 2 or 3, not '%s'\n", v);
             return 2;
         }
         a->algorithm = v[0] - '0';

@@ -32,8 +32,12 @@ leveler_control_state leveler_control_decide(uint16_t algorithm, int32_t band_lo
  * Algorithm 1 leaves out P3: the thesis rig without an accumulator had only
  * the LVDT and the spring and pipe transducers (Chapter III, "System
  * Modelling"), so a rig without one must not fault on a missing P3.
+ * Algorithm 3 uses P3 only when an accumulator is fitted (alg3_accumulator).
  * An unknown algorithm needs every channel.
  */
-uint16_t leveler_control_channels_used(uint16_t algorithm);
+uint16_t leveler_control_channels_used(uint16_t algorithm, bool acc_fitted);
+
+/* The outputs as bits: 1 compressor, 2 spring valve, 4 vent valve, 8 accumulator valve. */
+uint8_t leveler_outputs_bits(const leveler_outputs *o);
 
 #endif /* LEVELER_CONTROL_H */

@@ -11,7 +11,11 @@
 #include "leveler/hal.h"
 
 typedef enum { LEVELER_MODE_OFF = 0, LEVELER_MODE_AUTO = 1, LEVELER_MODE_MANUAL = 2 } leveler_mode;
-typedef enum { LEVELER_ALGO_NO_ACCUMULATOR = 1, LEVELER_ALGO_ACCUMULATOR = 2 } leveler_algorithm;
+typedef enum {
+    LEVELER_ALGO_NO_ACCUMULATOR = 1,
+    LEVELER_ALGO_ACCUMULATOR = 2,
+    LEVELER_ALGO_HYSTERESIS_AWARE = 3 /* algorithm 3, alg3.h */
+} leveler_algorithm;
 
 /* Two-point calibration of one channel: counts raw_lo -> eng_lo, raw_hi -> eng_hi
  * (eng in um for height, Pa absolute for pressures). */
@@ -42,6 +46,21 @@ typedef struct {
     uint16_t modbus_address;       /* 1..247 */
     uint16_t modbus_baud_div100;   /* 19200 baud = 192 */
     leveler_calibration calibration[HAL_ADC_COUNT];
+    uint16_t chatter_max_per_min;  /* supervisor: switchings per 60 s that latch the chatter fault; 0 = off */
+    /* algorithm 3 (alg3.h); the learnt values are kept here so they reach flash */
+    uint16_t alg3_accumulator;     /* 1 = fitted */
+    uint16_t alg3_target_permille; /* target inside the band, from the lower edge */
+    uint16_t alg3_persist_ms;
+    uint16_t alg3_min_on_ms;
+    uint16_t alg3_min_off_ms;
+    uint16_t alg3_settle_ms;
+    uint16_t alg3_learn;
+    uint16_t alg3_coast_up_ms;     /* learnt */
+    uint16_t alg3_coast_down_ms;   /* learnt */
+    int32_t alg3_confirm_um_s;
+    int32_t alg3_line_slope_pa_per_mm;
+    int32_t alg3_up_pa;            /* learnt, 0 = not yet */
+    int32_t alg3_down_pa;          /* learnt, 0 = not yet */
 } leveler_settings;
 
 /* Factory defaults (the thesis rig). */

@@ -20,13 +20,14 @@ typedef enum {
     LEVELER_FAULT_SENSOR_HEIGHT = 4, /* + channel: 5 P2, 6 P1, 7 P3 */
     LEVELER_FAULT_SENSOR_P_SPRING = 5,
     LEVELER_FAULT_SENSOR_P_PIPE = 6,
-    LEVELER_FAULT_SENSOR_P_ACC = 7
+    LEVELER_FAULT_SENSOR_P_ACC = 7,
+    LEVELER_FAULT_CHATTER = 8 /* outputs switching faster than settings.chatter_max_per_min */
 } leveler_fault_code;
 
 #define LEVELER_FAULT_BIT(code) ((uint16_t)(1u << ((unsigned)(code) - 1u)))
 
-/* fault_count[] slots: overpressure, run time, stall, any sensor. */
-#define LEVELER_FAULT_COUNTERS 4u
+/* fault_count[] slots: overpressure, run time, stall, any sensor, chatter. */
+#define LEVELER_FAULT_COUNTERS 5u
 
 typedef enum {
     LEVELER_STATE_IN_BAND = 0,
@@ -56,6 +57,8 @@ typedef struct {
     uint16_t raw_counts[HAL_ADC_COUNT];
     uint32_t log_rows_dropped; /* Linux rig: run-log rows not written */
     uint32_t sensor_scans_failed; /* Linux rig: module scans without a valid reply */
+    uint16_t alg3_phase; /* leveler_alg3_phase */
+    uint16_t alg3_moves;
     bool compressor_on;
     bool spring_valve_open;
     bool vent_valve_open;

@@ -3,7 +3,7 @@
  * asks for. Rules, in order of strength:
  *  1. safe state (compressor off, every valve closed) while: mode is off, any
  *     sensor is not valid (power-up, or faulty), or a fault of code 3..7
- *     (stall/leak, sensors) is latched. Those faults hold the safe state
+ *     (stall/leak, sensors) or 8 (chatter) is latched. Those faults hold the safe state
  *     until cleared by command (coil clear_faults) AND the condition is gone.
  *  2. overpressure (any of P1/P2/P3 above overpressure_limit_pa): compressor off
  *     until all are below the limit minus LEVELER_OVERPRESSURE_HYST_PA. Above
@@ -15,6 +15,8 @@
  *  4. stall / leak: while filling the spring (compressor on, spring valve open), neither P1 nor P2 rising by
  *     stall_min_rise_pa nor the height by stall_min_rise_um within
  *     stall_window_s latches fault 3 (-> rule 1).
+ *  5. chatter: more than chatter_max_per_min switchings of the driven outputs
+ *     in the last minute (chatter.h; 0 = off) latches fault 8 (-> rule 1).
  * Every fault is latched with its code and counted (counters saturate);
  * latched bits re-latch at once while their condition is still present.
  */
@@ -23,6 +25,7 @@
 
 #include <stdbool.h>
 #include <stdint.h>
+#include "leveler/chatter.h"
 #include "leveler/control.h"
 #include "leveler/settings.h"
 #include "leveler/status.h"
@@ -34,7 +37,8 @@
 #define LEVELER_FAULTS_HOLDING_SAFE                                                                        \
     ((uint16_t)(LEVELER_FAULT_BIT(LEVELER_FAULT_STALL) | LEVELER_FAULT_BIT(LEVELER_FAULT_SENSOR_HEIGHT) |  \
                 LEVELER_FAULT_BIT(LEVELER_FAULT_SENSOR_P_SPRING) |                                         \
-                LEVELER_FAULT_BIT(LEVELER_FAULT_SENSOR_P_PIPE) | LEVELER_FAULT_BIT(LEVELER_FAULT_SENSOR_P_ACC)))
+                LEVELER_FAULT_BIT(LEVELER_FAULT_SENSOR_P_PIPE) | LEVELER_FAULT_BIT(LEVELER_FAULT_SENSOR_P_ACC) | \
+                LEVELER_FAULT_BIT(LEVELER_FAULT_CHATTER)))
 
 typedef struct {
     int32_t height_um;
@@ -60,6 +64,7 @@ typedef struct {
     int32_t stall_ref_p_pipe_pa;
     int32_t stall_ref_p_spring_pa;
     int32_t stall_ref_height_um;
+    leveler_chatter chatter;
 } leveler_supervisor;
 
 void leveler_supervisor_init(leveler_supervisor *sv);

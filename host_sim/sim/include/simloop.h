@@ -26,7 +26,7 @@
 
 typedef struct {
     const plant_config *config;
-    int algorithm;               /* 0 = the config's; 1 or 2 overrides */
+    int algorithm;               /* 0 = the config's; 1, 2 or 3 overrides */
     const sim_load_step *steps;  /* NULL = the config's scenario */
     size_t step_count;
     double end_s;                /* 0 = the schedule's end; later = hold the last load */

@@ -1,0 +1,132 @@
+/*
+ * Algorithm 3: hysteresis-aware leveling (docs/controller.md).
+ *
+ * The thesis's band rules act on every sample at the band edge and fill or
+ * vent until the edge is crossed; with sensor noise they hunt, and the spring's
+ * hysteresis makes every overshoot through the band cost a full crossing of
+ * the gap between the up and down lines in air. Algorithm 3:
+ *  - filters the height (first order, tau ~35 ms) and estimates its rate
+ *    (difference over LEVELER_ALG3_RATE_TICKS ticks);
+ *  - acts only on a confirmed departure: outside the band for alg3_persist_ms
+ *    AND the distance outside integrated over time >= alg3_confirm_um_s
+ *    (a 1 in load-step drop confirms within a tick or two, a 0.001 in creep
+ *    only after minutes: noise never does);
+ *  - fills or vents towards a target inside the band (alg3_target_permille)
+ *    and closes early, when the predicted rest height
+ *    height + rate * coast time reaches the target;
+ *  - then waits with the valves closed until the platform is at rest
+ *    (at most alg3_settle_ms) before it may act again;
+ *  - gives every output a minimum on and off time (dwell.h);
+ *  - learns the coast times and the hysteresis lines from the rig's own
+ *    motion (alg3_learn.c) and keeps them in the settings (flash);
+ *  - with an accumulator: keeps it charged while at rest (compressor with a
+ *    recharge hysteresis), opens it with the spring valve while it can help
+ *    a fill, keeps it shut while venting (its air is not wasted).
+ * Pure apart from its own state: the same inputs give the same outputs.
+ */
+#ifndef LEVELER_ALG3_H
+#define LEVELER_ALG3_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "leveler/control.h"
+#include "leveler/dwell.h"
+#include "leveler/settings.h"
+#include "leveler/status.h"
+
+typedef enum {
+    LEVELER_ALG3_IDLE = 0,
+    LEVELER_ALG3_FILLING = 1,
+    LEVELER_ALG3_VENTING = 2,
+    LEVELER_ALG3_SETTLING = 3
+} leveler_alg3_phase;
+
+#define LEVELER_ALG3_RATE_TICKS 32u       /* rate = filtered height difference over 320 ms */
+#define LEVELER_ALG3_FILTER_DIV 4         /* first-order filter gain 1/4 per 10 ms tick */
+#define LEVELER_ALG3_Q 16                 /* filter state in 1/16 um */
+#define LEVELER_ALG3_STILL_UM_S 1500      /* |rate| below this: not moving (0.06 in/s) */
+#define LEVELER_ALG3_MOVING_UM_S 3000     /* |rate| above this: moving (0.12 in/s) */
+#define LEVELER_ALG3_REST_MS 300u         /* not moving this long = at rest */
+#define LEVELER_ALG3_RECHARGE_HYST_PA 13790 /* accumulator recharge starts 2 psi below the charge */
+#define LEVELER_ALG3_ACC_HELP_PA 6895     /* P3 must exceed P2 by 1 psi for its valve to open in a fill */
+#define LEVELER_ALG3_LINE_REACH_UM 50800  /* line points farther than 2 in from the target are not used */
+#define LEVELER_ALG3_LINE_MIN_PA 120000   /* a spring carrying the platform holds more than this (abs) */
+#define LEVELER_ALG3_COAST_MIN_RATE_UM_S 3000 /* closes slower than this teach no coast time */
+#define LEVELER_ALG3_COAST_MIN_MS 20
+#define LEVELER_ALG3_COAST_MAX_MS 5000
+
+/* What the learner saw (alg3_learn.c). */
+typedef struct {
+    uint32_t still_ms;        /* time |rate| < STILL */
+    int8_t motion;            /* +1 rising, -1 falling, 0 at rest: the last confirmed motion */
+    bool close_valid;         /* a move closed with a rate worth learning from */
+    int8_t close_dir;
+    int32_t close_height_um;
+    int32_t close_rate_um_s;
+    int32_t p_spring_ring_pa[LEVELER_ALG3_RATE_TICKS]; /* P2 history, same slots as heights */
+} leveler_alg3_watch;
+
+typedef struct {
+    bool primed;
+    int32_t height_q;         /* filtered height, 1/16 um */
+    int32_t ring_um[LEVELER_ALG3_RATE_TICKS];
+    uint8_t ring_head;
+    uint8_t ring_fill;
+    int32_t rate_um_s;
+    uint8_t phase;            /* leveler_alg3_phase */
+    uint32_t phase_start_ms;
+    uint32_t last_ms;         /* previous step */
+    int8_t out_dir;           /* -1 below the band, +1 above, 0 in */
+    uint32_t out_since_ms;
+    int64_t out_area_um_ms;   /* distance outside the band integrated over time */
+    bool recharging;          /* accumulator charge in progress */
+    uint16_t moves;
+    leveler_dwell dwell;
+    leveler_alg3_watch watch;
+} leveler_alg3;
+
+void leveler_alg3_init(leveler_alg3 *a, uint32_t now_ms);
+
+/*
+ * One tick: measurements (height um, P2/P1/P3 Pa absolute) -> outputs asked
+ * for. Returns the band state for the status. `held` = the supervisor held the
+ * safe state last tick (or the mode is not auto): the controller restarts from
+ * idle. When learning changes a setting, *learnt holds the new settings and
+ * the function sets *learnt_changed (the caller applies them).
+ */
+leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings *set, int32_t height_um,
+                                        int32_t p_spring_pa, int32_t p_pipe_pa, int32_t p_acc_pa, uint32_t now_ms,
+                                        bool held, leveler_outputs *out, leveler_settings *learnt,
+                                        bool *learnt_changed);
+
+/* The outputs actually driven this tick (after the supervisor), for the dwell timers. */
+void leveler_alg3_driven(leveler_alg3 *a, const leveler_outputs *driven, uint32_t now_ms);
+
+/* Target height (um): alg3_target_permille of the way from the lower band edge. */
+int32_t leveler_alg3_target_um(const leveler_settings *set);
+
+/* Filter and rate (exposed for the double-reference test), and the filtered height (um). */
+void leveler_alg3_filter(leveler_alg3 *a, int32_t height_um);
+int32_t leveler_alg3_height_um(const leveler_alg3 *a);
+
+/* Learning (alg3_learn.c), only while settings.alg3_learn is on. Line points:
+ * when the platform breaks away in a fill or a vent, P2 (half the rate window
+ * back, where the motion began) lies on the up or down line; when a rise or a
+ * fall stops with the spring valve closed, P2 lies on the line of that motion.
+ * A point is referred to the target height along alg3_line_slope_pa_per_mm and
+ * rejected unless it lies within LEVELER_ALG3_LINE_REACH_UM of the target and
+ * between LEVELER_ALG3_LINE_MIN_PA and the overpressure limit. A new point on
+ * one line that crosses the other line's value means the load changed: the
+ * other line is forgotten (0). Called once per tick after the phase logic. */
+void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa, uint32_t dt_ms,
+                        leveler_settings *learnt, bool *changed);
+/* Record a closing move (fill or vent ended by prediction) for coast learning. */
+void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir);
+/* At the end of a settle: learn the coast time from the recorded close. */
+void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt, bool *changed);
+
+/* Predicted rest height (um) if the valves closed now: height + rate * coast. */
+int32_t leveler_alg3_predict_um(int32_t height_um, int32_t rate_um_s, uint16_t coast_ms);
+
+#endif /* LEVELER_ALG3_H */
