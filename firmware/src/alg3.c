@@ -89,10 +89,35 @@ static void track_departure(leveler_alg3 *a, const leveler_settings *set, int32_
     }
 }
 
-static bool departure_confirmed(const leveler_alg3 *a, const leveler_settings *set, uint32_t now_ms)
+/* Rest height predicted from the rate and the learnt coast time of the move's direction. */
+static int32_t rate_prediction(const leveler_alg3 *a, const leveler_settings *set, int32_t h)
 {
-    return a->out_dir != 0 && now_ms - a->out_since_ms >= set->alg3_persist_ms &&
-           a->out_area_um_ms >= (int64_t)set->alg3_confirm_um_s * 1000;
+    uint16_t coast = a->rate_um_s >= 0 ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
+    return leveler_alg3_predict_um(h, a->rate_um_s, coast);
+}
+
+/* Which side of the band a height is on: -1 below, +1 above, 0 inside. */
+static int8_t side(const leveler_settings *set, int32_t h)
+{
+    if (h < set->band_lower_um) {
+        return -1;
+    }
+    return (h > set->band_upper_um) ? 1 : 0;
+}
+
+/* Confirmed: long and far enough outside, or a load change under way (a fast
+ * move whose predicted rest lies outside). Acted on only while the predicted
+ * rest lies outside on that side: a platform coasting back is left alone. */
+static int8_t departure(const leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms)
+{
+    int8_t rest_side = side(set, rate_prediction(a, set, h));
+    bool fast = a->rate_um_s >= LEVELER_ALG3_FAST_UM_S || a->rate_um_s <= -LEVELER_ALG3_FAST_UM_S;
+    if (fast && rest_side != 0 && (rest_side > 0) == (a->rate_um_s > 0)) {
+        return rest_side;
+    }
+    bool confirmed = a->out_dir != 0 && now_ms - a->out_since_ms >= set->alg3_persist_ms &&
+                     a->out_area_um_ms >= (int64_t)set->alg3_confirm_um_s * 1000;
+    return (confirmed && rest_side == a->out_dir) ? a->out_dir : 0;
 }
 
 static void enter(leveler_alg3 *a, uint8_t phase, uint32_t now_ms)
@@ -101,54 +126,78 @@ static void enter(leveler_alg3 *a, uint8_t phase, uint32_t now_ms)
     a->phase_start_ms = now_ms;
 }
 
-/* In band (or waiting): act on a confirmed departure unless the platform is
- * already on its way back (its predicted rest is inside the band). */
 static void idle(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms)
 {
-    if (!departure_confirmed(a, set, now_ms)) {
+    int8_t dir = departure(a, set, h, now_ms);
+    if (dir == 0) {
         return;
     }
-    uint16_t coast = a->out_dir < 0 ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
-    int32_t pred = leveler_alg3_predict_um(h, a->rate_um_s, coast);
-    bool returning = (a->out_dir < 0) ? (a->rate_um_s > LEVELER_ALG3_MOVING_UM_S && pred >= set->band_lower_um)
-                                      : (a->rate_um_s < -LEVELER_ALG3_MOVING_UM_S && pred <= set->band_upper_um);
-    if (returning) {
-        return;
-    }
-    enter(a, a->out_dir < 0 ? LEVELER_ALG3_FILLING : LEVELER_ALG3_VENTING, now_ms);
+    enter(a, dir < 0 ? LEVELER_ALG3_FILLING : LEVELER_ALG3_VENTING, now_ms);
+    a->watch.line_fresh = false;
+    a->watch.moved = false;
     a->moves = leveler_sat_inc_u16(a->moves);
 }
 
-/* Filling or venting: close when the platform is predicted to come to rest at
- * the target, or is there, or has gone through the band. */
-static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms)
+/* Rest height if the valves closed now, from the pressure: the excess over the
+ * up line (or under the down line) coasts alg3_coast_k_pa_per_mm per mm.
+ * Returns h when the line is not known for the present load. */
+static int32_t line_prediction(const leveler_alg3 *a, const leveler_settings *set, bool up, int32_t h,
+                               int32_t p_spring_pa)
+{
+    int32_t line = leveler_alg3_line_estimate(a, set, up, h);
+    if (line == 0) {
+        return h;
+    }
+    int64_t excess = up ? (int64_t)p_spring_pa - line : (int64_t)line - p_spring_pa;
+    if (excess <= 0) {
+        return h;
+    }
+    int64_t travel_um = leveler_div_round_i64(excess * 1000, set->alg3_coast_k_pa_per_mm);
+    return leveler_sat_i32(up ? (int64_t)h + travel_um : (int64_t)h - travel_um);
+}
+
+/* A prediction with its travel stretched by EARLY_NUM/EARLY_DEN. */
+static int64_t stretched(int32_t h, int32_t pred)
+{
+    return (int64_t)h + ((int64_t)pred - h) * LEVELER_ALG3_EARLY_NUM / LEVELER_ALG3_EARLY_DEN;
+}
+
+/* Filling or venting: close when either prediction reaches the target, or
+ * the platform is there, or has gone through the band. */
+static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int32_t p_spring_pa, uint32_t now_ms)
 {
     int32_t target = leveler_alg3_target_um(set);
     bool up = a->phase == LEVELER_ALG3_FILLING;
     int32_t rate = up ? a->rate_um_s : -a->rate_um_s; /* along the move */
-    int32_t pred = leveler_alg3_predict_um(h, a->rate_um_s, up ? set->alg3_coast_up_ms : set->alg3_coast_down_ms);
+    int32_t by_rate = rate > LEVELER_ALG3_STILL_UM_S ? rate_prediction(a, set, h) : h;
+    int32_t by_line = line_prediction(a, set, up, h, p_spring_pa);
     bool there = up ? (h >= target || h > set->band_upper_um) : (h <= target || h < set->band_lower_um);
-    bool coasts_there = rate > LEVELER_ALG3_STILL_UM_S && (up ? pred >= target : pred <= target);
+    int64_t early = up ? (stretched(h, by_rate) > stretched(h, by_line) ? stretched(h, by_rate) : stretched(h, by_line))
+                       : (stretched(h, by_rate) < stretched(h, by_line) ? stretched(h, by_rate) : stretched(h, by_line));
+    bool coasts_there = up ? early >= target : early <= target;
     if (there || coasts_there) {
-        leveler_alg3_note_close(a, up ? 1 : -1);
+        leveler_alg3_note_close(a, up ? 1 : -1, p_spring_pa);
         enter(a, LEVELER_ALG3_SETTLING, now_ms);
     }
 }
 
-static void settling(leveler_alg3 *a, const leveler_settings *set, uint32_t now_ms, leveler_settings *learnt,
-                     bool *changed)
+/* Valves closed until the platform is at rest (or alg3_settle_ms); then the
+ * coast is learnt from. */
+static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa, uint32_t now_ms,
+                     leveler_settings *learnt, bool *changed)
 {
     uint32_t in_phase = now_ms - a->phase_start_ms;
-    bool at_rest = in_phase >= LEVELER_ALG3_REST_MS && a->watch.still_ms >= LEVELER_ALG3_REST_MS;
+    bool at_rest = a->watch.still_ms >= LEVELER_ALG3_SETTLE_REST_MS;
     if (at_rest || in_phase >= set->alg3_settle_ms) {
-        leveler_alg3_learn_coast(a, set, learnt, changed);
+        if (at_rest) {
+            leveler_alg3_learn_coast(a, set, p_spring_pa, learnt, changed);
+        }
+        a->watch.close_valid = false;
         enter(a, LEVELER_ALG3_IDLE, now_ms);
     }
 }
 
-/* The outputs of the phase. With an accumulator: recharged at rest (with a
- * hysteresis, so pressure noise does not cycle the compressor), opened in a
- * fill while it holds more than the spring, shut while venting. */
+/* The outputs of the phase. */
 static void phase_outputs(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa, int32_t p_acc_pa,
                           leveler_outputs *out)
 {
@@ -163,9 +212,11 @@ static void phase_outputs(leveler_alg3 *a, const leveler_settings *set, int32_t 
     if (a->phase == LEVELER_ALG3_VENTING) {
         out->spring_valve = true;
         out->vent_valve = true;
+        out->acc_valve = acc && (int64_t)p_acc_pa + LEVELER_ALG3_ACC_HELP_PA < (int64_t)p_spring_pa &&
+                         p_acc_pa < set->acc_charge_max_pa;
         return;
     }
-    if (a->phase == LEVELER_ALG3_IDLE && acc) {
+    if (a->phase == LEVELER_ALG3_IDLE && acc && a->out_dir == 0) {
         if ((int64_t)p_acc_pa < (int64_t)set->acc_charge_max_pa - LEVELER_ALG3_RECHARGE_HYST_PA) {
             a->recharging = true;
         } else if (p_acc_pa >= set->acc_charge_max_pa) {
@@ -206,9 +257,9 @@ leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings 
     if (a->phase == LEVELER_ALG3_IDLE) {
         idle(a, set, h, now_ms);
     } else if (a->phase == LEVELER_ALG3_SETTLING) {
-        settling(a, set, now_ms, learnt, learnt_changed);
+        settling(a, set, p_spring_pa, now_ms, learnt, learnt_changed);
     } else {
-        moving(a, set, h, now_ms);
+        moving(a, set, h, p_spring_pa, now_ms);
     }
     phase_outputs(a, set, p_spring_pa, p_acc_pa, out);
     leveler_dwell_apply(&a->dwell, set->alg3_min_on_ms, set->alg3_min_off_ms, now_ms, out);

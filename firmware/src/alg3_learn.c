@@ -22,64 +22,86 @@ static void begin(const leveler_settings *set, leveler_settings *learnt, bool *c
     }
 }
 
-void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir)
+void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir, int32_t p_spring_pa)
 {
     int32_t along = dir > 0 ? a->rate_um_s : -a->rate_um_s;
     a->watch.close_valid = along >= LEVELER_ALG3_COAST_MIN_RATE_UM_S;
     a->watch.close_dir = dir;
     a->watch.close_height_um = leveler_alg3_height_um(a);
     a->watch.close_rate_um_s = a->rate_um_s;
+    a->watch.close_p_spring_pa = p_spring_pa;
 }
 
-/* Coast time seen: travel after the close / rate at the close. Implausible
- * (backwards, or outside 20 ms..5 s) is ignored; else halfway towards it. */
-void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt, bool *changed)
+/* Halfway from old towards seen, clamped to [lo, hi]; seen outside is ignored (returns old). */
+static int32_t towards(int32_t old, int64_t seen, int32_t lo, int32_t hi)
 {
-    if (!a->watch.close_valid || set->alg3_learn == 0u) {
-        a->watch.close_valid = false;
+    if (seen < lo || seen > hi) {
+        return old;
+    }
+    return (int32_t)(((int64_t)old + seen + 1) / 2);
+}
+
+void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa,
+                              leveler_settings *learnt, bool *changed)
+{
+    leveler_alg3_watch *w = &a->watch;
+    bool valid = w->close_valid && set->alg3_learn != 0u;
+    w->close_valid = false;
+    int64_t travel_um = (int64_t)leveler_alg3_height_um(a) - w->close_height_um;
+    if (!w->moved && !w->line_fresh) {
+        /* closed on the estimate from the last stop, and nothing moved: the
+         * line lies beyond it; fill or vent on until the platform breaks away */
+        w->end_valid = false;
+    }
+    if (!valid || travel_um == 0) {
         return;
     }
-    a->watch.close_valid = false;
-    int64_t travel = (int64_t)leveler_alg3_height_um(a) - a->watch.close_height_um;
-    int64_t seen_ms = leveler_div_round_i64(travel * 1000 * (a->watch.close_rate_um_s < 0 ? -1 : 1),
-                                            a->watch.close_rate_um_s < 0 ? -(int64_t)a->watch.close_rate_um_s
-                                                                         : (int64_t)a->watch.close_rate_um_s);
-    if (seen_ms < LEVELER_ALG3_COAST_MIN_MS || seen_ms > LEVELER_ALG3_COAST_MAX_MS) {
-        return;
-    }
-    uint16_t old = a->watch.close_dir > 0 ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
-    uint16_t next = (uint16_t)(((uint32_t)old + (uint32_t)seen_ms + 1u) / 2u);
-    if (next == old) {
+    /* travel / rate: both signed the same way for a plausible coast */
+    int64_t tau_ms = leveler_div_round_i64(travel_um * 1000 * (w->close_rate_um_s < 0 ? -1 : 1),
+                                           w->close_rate_um_s < 0 ? -(int64_t)w->close_rate_um_s
+                                                                  : (int64_t)w->close_rate_um_s);
+    /* trapped air: P2 falls as the platform rises (and rises as it falls) */
+    int64_t dp = (int64_t)w->close_p_spring_pa - p_spring_pa;
+    int64_t k = leveler_div_round_i64(dp * 1000 * (travel_um < 0 ? -1 : 1), travel_um < 0 ? -travel_um : travel_um) +
+                set->alg3_line_slope_pa_per_mm;
+    bool up = w->close_dir > 0;
+    int32_t old_tau = up ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
+    int32_t new_tau = towards(old_tau, tau_ms, LEVELER_ALG3_COAST_MIN_MS, LEVELER_ALG3_COAST_MAX_MS);
+    int32_t new_k = towards(set->alg3_coast_k_pa_per_mm, k, LEVELER_ALG3_K_MIN_PA_PER_MM,
+                            LEVELER_ALG3_K_MAX_PA_PER_MM);
+    if (new_tau == old_tau && new_k == set->alg3_coast_k_pa_per_mm) {
         return;
     }
     begin(set, learnt, changed);
-    if (a->watch.close_dir > 0) {
-        learnt->alg3_coast_up_ms = next;
+    learnt->alg3_coast_k_pa_per_mm = new_k;
+    if (up) {
+        learnt->alg3_coast_up_ms = (uint16_t)new_tau;
     } else {
-        learnt->alg3_coast_down_ms = next;
+        learnt->alg3_coast_down_ms = (uint16_t)new_tau;
     }
 }
 
-/* P2 where the present motion began: half the rate window back. */
+/* P2 where the present motion began or ended: the rate (a difference over the
+ * window, on a filtered height) crosses its threshold about a window after
+ * the platform starts or stops, while a fill may push P2 on at several psi/s;
+ * so the oldest P2 of the window is taken. */
 static int32_t p_spring_at_start(const leveler_alg3 *a)
 {
-    unsigned newest = (a->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
-    unsigned back = (newest + LEVELER_ALG3_RATE_TICKS - LEVELER_ALG3_RATE_TICKS / 2u) % LEVELER_ALG3_RATE_TICKS;
-    return a->watch.p_spring_ring_pa[back];
+    return a->watch.p_spring_ring_pa[a->ring_head]; /* the slot the next tick overwrites */
 }
 
 /* A point (h, P2) on the up (dir > 0) or down line, referred to the target. */
-static void line_point(const leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_spring_pa,
+static bool line_point(const leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_spring_pa,
                        leveler_settings *learnt, bool *changed)
 {
     int32_t h = leveler_alg3_height_um(a);
     int64_t dh = (int64_t)leveler_alg3_target_um(set) - h;
     if (dh > LEVELER_ALG3_LINE_REACH_UM || dh < -LEVELER_ALG3_LINE_REACH_UM) {
-        return;
+        return false;
     }
     int64_t p = (int64_t)p_spring_pa + leveler_div_round_i64(dh * set->alg3_line_slope_pa_per_mm, 1000);
     if (p < LEVELER_ALG3_LINE_MIN_PA || p > set->overpressure_limit_pa) {
-        return;
+        return false;
     }
     begin(set, learnt, changed);
     if (dir > 0) {
@@ -92,6 +114,49 @@ static void line_point(const leveler_alg3 *a, const leveler_settings *set, int8_
         if (learnt->alg3_up_pa != 0 && learnt->alg3_up_pa <= learnt->alg3_down_pa) {
             learnt->alg3_up_pa = 0;
         }
+    }
+    return true;
+}
+
+static int32_t along_slope(const leveler_settings *set, int32_t p_pa, int32_t from_um, int32_t to_um)
+{
+    int64_t dh = (int64_t)to_um - from_um;
+    return leveler_sat_i32((int64_t)p_pa + leveler_div_round_i64(dh * set->alg3_line_slope_pa_per_mm, 1000));
+}
+
+int32_t leveler_alg3_line_estimate(const leveler_alg3 *a, const leveler_settings *set, bool up, int32_t h)
+{
+    const leveler_alg3_watch *w = &a->watch;
+    if (w->line_fresh) {
+        int32_t at_target = up ? set->alg3_up_pa : set->alg3_down_pa;
+        return at_target == 0 ? 0 : along_slope(set, at_target, leveler_alg3_target_um(set), h);
+    }
+    if (!w->end_valid) {
+        return 0;
+    }
+    int32_t p = along_slope(set, w->end_p_spring_pa, w->end_height_um, h);
+    if ((w->end_dir > 0) == up) {
+        return p;
+    }
+    return leveler_sat_i32((int64_t)p + (up ? set->alg3_gap_pa : -set->alg3_gap_pa));
+}
+
+/* The gap seen between where the last motion stopped on the other line and
+ * this break-away (both of the present load), halfway into alg3_gap_pa. */
+static void learn_gap(const leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_break_pa,
+                      leveler_settings *learnt, bool *changed)
+{
+    const leveler_alg3_watch *w = &a->watch;
+    if (!w->end_valid || w->end_dir == dir) {
+        return;
+    }
+    int32_t other = along_slope(set, w->end_p_spring_pa, w->end_height_um, leveler_alg3_height_um(a));
+    int64_t gap = dir > 0 ? (int64_t)p_break_pa - other : (int64_t)other - p_break_pa;
+    int32_t old = *changed ? learnt->alg3_gap_pa : set->alg3_gap_pa;
+    int32_t next = towards(old, gap, LEVELER_ALG3_GAP_MIN_PA, LEVELER_ALG3_GAP_MAX_PA);
+    if (next != old) {
+        begin(set, learnt, changed);
+        learnt->alg3_gap_pa = next;
     }
 }
 
@@ -107,12 +172,23 @@ void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_
     bool learn = set->alg3_learn != 0u;
     if (rate > LEVELER_ALG3_MOVING_UM_S || rate < -LEVELER_ALG3_MOVING_UM_S) {
         int8_t dir = rate > 0 ? 1 : -1;
+        w->moved = true;
         bool breaks_away = w->motion == 0 && ((dir > 0 && a->phase == LEVELER_ALG3_FILLING) ||
                                               (dir < 0 && a->phase == LEVELER_ALG3_VENTING));
         if (learn && breaks_away) {
-            line_point(a, set, dir, p_spring_at_start(a), learnt, changed);
+            int32_t p_break = p_spring_at_start(a);
+            learn_gap(a, set, dir, p_break, learnt, changed);
+            a->watch.line_fresh = line_point(a, set, dir, p_break, learnt, changed);
         }
         w->motion = dir;
+        w->ended = false;
+    } else if (w->motion != 0 && still && !w->ended) {
+        /* the motion has just ended: P2 where it ended lies on its line */
+        w->ended = true;
+        w->end_valid = true;
+        w->end_dir = w->motion;
+        w->end_height_um = leveler_alg3_height_um(a);
+        w->end_p_spring_pa = p_spring_at_start(a);
     } else if (w->motion != 0 && w->still_ms >= LEVELER_ALG3_REST_MS) {
         bool sealed = a->phase == LEVELER_ALG3_IDLE || a->phase == LEVELER_ALG3_SETTLING;
         if (learn && sealed) {

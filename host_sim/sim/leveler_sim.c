@@ -16,18 +16,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
+#include "pyrun.h"
 #include "simloop.h"
-
-#ifndef LEVELER_SOURCE_DIR
-#define LEVELER_SOURCE_DIR "."
-#endif
-#ifndef LEVELER_DEFAULT_PYTHON
-#define LEVELER_DEFAULT_PYTHON "python3"
-#endif
 
 static void usage(FILE *f)
 {
@@ -68,83 +59,37 @@ static int dump_config(const char *config)
     return plant_config_write_json(&cfg, stdout) == 0 && fflush(stdout) == 0 ? 0 : 1;
 }
 
-/* This program's own path, so leveler.report asks the same leveler-sim for the config. */
-static void export_self(void)
-{
-    char self[4096];
-    ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
-    if (n > 0) {
-        self[n] = 0;
-        setenv("LEVELER_SIM", self, 0);
-    }
-}
-
 static int run_report(const char *log, const char *summary, const char *plot, const char *config, const char *units)
 {
-    const char *py = getenv("LEVELER_PYTHON");
-    if (!py || !*py)
-        py = LEVELER_DEFAULT_PYTHON;
-    const char *scripts = getenv("LEVELER_SCRIPTS_DIR");
-    char scripts_buf[1024];
-    if (!scripts || !*scripts) {
-        snprintf(scripts_buf, sizeof scripts_buf, "%s/scripts", LEVELER_SOURCE_DIR);
-        scripts = scripts_buf;
-    }
-    char module[1200];
-    struct stat st;
-    snprintf(module, sizeof module, "%s/leveler/report.py", scripts);
-    if (stat(module, &st) != 0) {
-        fprintf(stderr,
-                "leveler-sim: the log is written, but --summary/--plot need the analysis module %s, "
-                "which is not there (yet); run it later with: PYTHONPATH=%s %s -m leveler.report --log %s\n",
-                module, scripts, py, log);
-        return 1;
-    }
-    const char *argv[16];
+    const char *args[16];
     int n = 0;
-    argv[n++] = py;
-    argv[n++] = "-m";
-    argv[n++] = "leveler.report";
-    argv[n++] = "--log";
-    argv[n++] = log;
+    args[n++] = "--log";
+    args[n++] = log;
     if (summary) {
-        argv[n++] = "--summary";
-        argv[n++] = summary;
+        args[n++] = "--summary";
+        args[n++] = summary;
     }
     if (plot) {
-        argv[n++] = "--plot";
-        argv[n++] = plot;
+        args[n++] = "--plot";
+        args[n++] = plot;
     }
     if (config) {
-        argv[n++] = "--config";
-        argv[n++] = config;
+        args[n++] = "--config";
+        args[n++] = config;
     }
-    argv[n++] = "--units";
-    argv[n++] = units;
-    argv[n] = NULL;
-    fflush(stdout);
-    pid_t pid = fork();
-    if (pid < 0) {
-        fprintf(stderr, "leveler-sim: fork: %s\n", strerror(errno));
+    args[n++] = "--units";
+    args[n++] = units;
+    args[n] = NULL;
+    int rc = sim_python_module("leveler-sim", "report", args);
+    if (rc == -2) {
+        fprintf(stderr,
+                "leveler-sim: the log is written, but --summary/--plot need the analysis module "
+                "%s/leveler/report.py, which is not there (yet); run it later with: PYTHONPATH=%s %s -m "
+                "leveler.report --log %s\n",
+                sim_python_scripts_dir(), sim_python_scripts_dir(), sim_python_path(), log);
         return 1;
     }
-    if (pid == 0) {
-        setenv("PYTHONPATH", scripts, 1);
-        export_self();
-        execvp(py, (char *const *)argv);
-        fprintf(stderr, "leveler-sim: cannot run %s: %s (set LEVELER_PYTHON)\n", py, strerror(errno));
-        _exit(127);
-    }
-    int status;
-    while (waitpid(pid, &status, 0) < 0)
-        if (errno != EINTR)
-            return 1;
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-        fprintf(stderr, "leveler-sim: leveler.report failed (status %d)\n",
-                WIFEXITED(status) ? WEXITSTATUS(status) : -1);
-        return 1;
-    }
-    return 0;
+    return rc;
 }
 
 typedef struct {

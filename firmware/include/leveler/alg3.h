@@ -11,17 +11,28 @@
  *    AND the distance outside integrated over time >= alg3_confirm_um_s
  *    (a 1 in load-step drop confirms within a tick or two, a 0.001 in creep
  *    only after minutes: noise never does);
+ *  - or on a fast move (a load change) whose predicted rest lies outside the
+ *    band, before the band edge is even reached;
+ *  - acts only when the predicted rest lies outside the band (a platform
+ *    still coasting back is left alone);
  *  - fills or vents towards a target inside the band (alg3_target_permille)
- *    and closes early, when the predicted rest height
- *    height + rate * coast time reaches the target;
+ *    and closes early, when either predicted rest height reaches the target:
+ *    height + rate * coast time, or (once the platform has broken away in this
+ *    move, so the line is the present load's) height + the excess of P2 over
+ *    the up line (below the down line) / alg3_coast_k_pa_per_mm. An early
+ *    close is cheap (a further move the same way starts at once, the platform
+ *    sits on that line), a late one costs a crossing of the whole hysteresis
+ *    gap; so the earlier of the two predictions wins;
  *  - then waits with the valves closed until the platform is at rest
  *    (at most alg3_settle_ms) before it may act again;
  *  - gives every output a minimum on and off time (dwell.h);
  *  - learns the coast times and the hysteresis lines from the rig's own
  *    motion (alg3_learn.c) and keeps them in the settings (flash);
  *  - with an accumulator: keeps it charged while at rest (compressor with a
- *    recharge hysteresis), opens it with the spring valve while it can help
- *    a fill, keeps it shut while venting (its air is not wasted).
+ *    recharge hysteresis, never while a departure is pending), opens it with
+ *    the spring valve while it can help a fill, and while venting lets the
+ *    spring's surplus into it while it is below the spring and its charge
+ *    (air kept, not blown off).
  * Pure apart from its own state: the same inputs give the same outputs.
  */
 #ifndef LEVELER_ALG3_H
@@ -55,6 +66,14 @@ typedef enum {
 #define LEVELER_ALG3_COAST_MIN_RATE_UM_S 3000 /* closes slower than this teach no coast time */
 #define LEVELER_ALG3_COAST_MIN_MS 20
 #define LEVELER_ALG3_COAST_MAX_MS 5000
+#define LEVELER_ALG3_K_MIN_PA_PER_MM 50
+#define LEVELER_ALG3_K_MAX_PA_PER_MM 20000
+#define LEVELER_ALG3_FAST_UM_S 12000     /* a move this fast (0.47 in/s) heading out of the band is a load change */
+#define LEVELER_ALG3_SETTLE_REST_MS 1000u /* a settle ends after this long at rest */
+#define LEVELER_ALG3_EARLY_NUM 5          /* predicted travel x 5/4: an early close is cheap, a late one costs the gap */
+#define LEVELER_ALG3_EARLY_DEN 4
+#define LEVELER_ALG3_GAP_MIN_PA 5000
+#define LEVELER_ALG3_GAP_MAX_PA 300000
 
 /* What the learner saw (alg3_learn.c). */
 typedef struct {
@@ -64,6 +83,14 @@ typedef struct {
     int8_t close_dir;
     int32_t close_height_um;
     int32_t close_rate_um_s;
+    int32_t close_p_spring_pa;
+    bool line_fresh;          /* the line of the present move was learnt in this move */
+    bool ended;               /* the present motion's end is recorded */
+    bool moved;               /* the platform moved since the present fill or vent began */
+    bool end_valid;           /* where the last motion ended: on the up (+1) or down (-1) line */
+    int8_t end_dir;
+    int32_t end_height_um;
+    int32_t end_p_spring_pa;
     int32_t p_spring_ring_pa[LEVELER_ALG3_RATE_TICKS]; /* P2 history, same slots as heights */
 } leveler_alg3_watch;
 
@@ -122,9 +149,17 @@ int32_t leveler_alg3_height_um(const leveler_alg3 *a);
 void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa, uint32_t dt_ms,
                         leveler_settings *learnt, bool *changed);
 /* Record a closing move (fill or vent ended by prediction) for coast learning. */
-void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir);
-/* At the end of a settle: learn the coast time from the recorded close. */
-void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt, bool *changed);
+void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir, int32_t p_spring_pa);
+/* At rest after a close: learn the coast time (travel / rate at the close) and
+ * the coast stiffness (P2 change / travel + line slope) from the recorded close. */
+void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa,
+                              leveler_settings *learnt, bool *changed);
+
+/* The up (or down) line at height h for the present load, Pa absolute, 0 when
+ * unknown: the point learnt when the platform broke away in this move; else
+ * where the last motion stopped (on the line of that motion), along the line
+ * slope, plus (or minus) alg3_gap_pa when that was the other line. */
+int32_t leveler_alg3_line_estimate(const leveler_alg3 *a, const leveler_settings *set, bool up, int32_t h);
 
 /* Predicted rest height (um) if the valves closed now: height + rate * coast. */
 int32_t leveler_alg3_predict_um(int32_t height_um, int32_t rate_um_s, uint16_t coast_ms);

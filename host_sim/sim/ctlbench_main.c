@@ -1,0 +1,280 @@
+/*
+ * leveler-ctlbench: the controller scorecard. Runs the scenario suite
+ * (ctlbench.h) with algorithms 1, 2 and 3, prints a table per scenario and
+ * the issue's targets with algorithm 3 beside algorithms 1 and 2 of the same
+ * run, and writes per scenario a PNG (python -m leveler.ctlbench_plot over
+ * the run logs) and scorecard.json.
+ *
+ *   leveler-ctlbench [--out DIR] [--configs DIR] [--short] [--no-plots]
+ *
+ * Exit status: 0 ok (targets missed are reported, not failed), 2 usage, 1 run failure.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "ctlbench.h"
+#include "pyrun.h"
+
+#ifndef LEVELER_SOURCE_DIR
+#define LEVELER_SOURCE_DIR "."
+#endif
+
+#define MAX_SCENARIOS 32
+#define IN_PER_M (1.0 / PLANT_M_PER_IN)
+
+typedef struct {
+    ctlbench_scenario sc;
+    ctlbench_metrics m[3]; /* algorithms 1, 2, 3 */
+} scored;
+
+static void row3(const char *label, const char *fmt, double a, double b, double c)
+{
+    char buf[3][32];
+    const double v[3] = {a, b, c};
+    for (int i = 0; i < 3; i++) {
+        if (isnan(v[i]))
+            snprintf(buf[i], sizeof buf[i], "-");
+        else
+            snprintf(buf[i], sizeof buf[i], fmt, v[i]);
+    }
+    printf("  %-40s %12s %12s %12s\n", label, buf[0], buf[1], buf[2]);
+}
+
+static void print_scenario(const scored *s)
+{
+    const ctlbench_scenario *sc = &s->sc;
+    const ctlbench_metrics *m = s->m;
+    printf("\n== %s (%s, noise %g counts, %zu load steps, %.0f s) ==\n", sc->name, sc->config, sc->noise_counts,
+           sc->step_count - 1, sc->end_s);
+    printf("  %-40s %12s %12s %12s\n", "", "alg 1", "alg 2", "alg 3");
+    for (size_t k = 0; k < m[0].step_count && sc->kind == CTLBENCH_THESIS; k++) {
+        char label[64];
+        snprintf(label, sizeof label, "%+.0f lb at %.0f s: first entry (s)", m[0].step[k].load_change_n / PLANT_N_PER_LBF,
+                 m[0].step[k].t_s);
+        row3(label, "%.2f", m[0].step[k].first_entry_s, m[1].step[k].first_entry_s, m[2].step[k].first_entry_s);
+        snprintf(label, sizeof label, "%+.0f lb at %.0f s: back to stay (s)", m[0].step[k].load_change_n / PLANT_N_PER_LBF,
+                 m[0].step[k].t_s);
+        row3(label, "%.2f", m[0].step[k].return_s, m[1].step[k].return_s, m[2].step[k].return_s);
+    }
+    row3("return to stay, median (s)", "%.2f", m[0].return_median_s, m[1].return_median_s, m[2].return_median_s);
+    row3("return to stay, worst (s)", "%.2f", m[0].return_worst_s, m[1].return_worst_s, m[2].return_worst_s);
+    row3("steps never settled", "%.0f", m[0].unsettled_steps, m[1].unsettled_steps, m[2].unsettled_steps);
+    row3("overshoot beyond the band (in)", "%.3f", m[0].overshoot_max_m * IN_PER_M, m[1].overshoot_max_m * IN_PER_M,
+         m[2].overshoot_max_m * IN_PER_M);
+    row3("switchings per step", "%.1f", m[0].switchings_per_step, m[1].switchings_per_step, m[2].switchings_per_step);
+    if (sc->kind == CTLBENCH_REST) {
+        row3("switchings per minute at rest", "%.2f", m[0].rest_switchings_per_min, m[1].rest_switchings_per_min,
+             m[2].rest_switchings_per_min);
+        row3("switchings at rest (scored window)", "%.0f", m[0].rest_switchings, m[1].rest_switchings,
+             m[2].rest_switchings);
+        row3("outside the band at rest (s)", "%.2f", m[0].rest_outside_s, m[1].rest_outside_s, m[2].rest_outside_s);
+    }
+    row3("compressor on (s)", "%.1f", m[0].compressor_on_s, m[1].compressor_on_s, m[2].compressor_on_s);
+    row3("air vented (kg)", "%.4f", m[0].vented_kg, m[1].vented_kg, m[2].vented_kg);
+    row3("time outside the band (s)", "%.1f", m[0].outside_s, m[1].outside_s, m[2].outside_s);
+    printf("  %-40s %12s %12s %12s\n", "latched fault codes", "", "", "");
+    for (int a = 0; a < 3; a++) {
+        char codes[40] = "";
+        for (unsigned code = 1; code <= 16; code++)
+            if (m[a].latched_faults & (1u << (code - 1)))
+                snprintf(codes + strlen(codes), sizeof codes - strlen(codes), "%s%u", codes[0] ? "," : "", code);
+        printf("%s%12s", a == 0 ? "  " "                                         " : " ", codes[0] ? codes : "none");
+    }
+    printf("\n");
+}
+
+static bool has_accumulator(const ctlbench_scenario *sc, const char *kind)
+{
+    return strstr(sc->config, kind) != NULL;
+}
+
+static void verdict(const char *target, const char *where, const char *figure, double a1, double a2, double a3,
+                    bool met, unsigned *missed)
+{
+    printf("  %-34s %-26s %-22s %9.3f %9.3f %9.3f  %s\n", target, where, figure, a1, a2, a3, met ? "met" : "MISSED");
+    *missed += met ? 0u : 1u;
+}
+
+/* The targets, algorithm 3 against algorithms 1 and 2 of the same run. */
+static unsigned print_targets(const scored *s, size_t n)
+{
+    unsigned missed = 0;
+    printf("\n== targets (algorithm 3 beside algorithms 1 and 2 of this run) ==\n");
+    printf("  %-34s %-26s %-22s %9s %9s %9s\n", "target", "scenario", "figure", "alg 1", "alg 2", "alg 3");
+    for (size_t i = 0; i < n; i++) {
+        const ctlbench_scenario *sc = &s[i].sc;
+        const ctlbench_metrics *m = s[i].m;
+        if (sc->kind == CTLBENCH_REST) {
+            verdict("rest: 0 switchings", sc->name, "switchings at rest", m[0].rest_switchings,
+                    m[1].rest_switchings, m[2].rest_switchings, m[2].rest_switchings == 0, &missed);
+            verdict("rest: never outside the band", sc->name, "outside at rest (s)", m[0].rest_outside_s,
+                    m[1].rest_outside_s, m[2].rest_outside_s, m[2].rest_outside_s == 0.0, &missed);
+        }
+        if (sc->kind == CTLBENCH_THESIS && has_accumulator(sc, "diaphragm")) {
+            const ctlbench_step *st = m[2].step; /* +200 lb */
+            verdict("diaphragm: <= 0.7 x alg 2 entry", sc->name, "+200 lb return (s)", m[0].step[0].return_s,
+                    m[1].step[0].first_entry_s, st->return_s,
+                    st->settled && st->return_s <= 0.7 * m[1].step[0].first_entry_s, &missed);
+            verdict("diaphragm: fewer switchings", sc->name, "+200 lb switchings", m[0].step[0].switchings,
+                    m[1].step[0].switchings, st->switchings, st->switchings < m[1].step[0].switchings, &missed);
+        }
+        if (sc->kind != CTLBENCH_REST && !has_accumulator(sc, "tube") && !has_accumulator(sc, "diaphragm")) {
+            verdict("no acc: median return <= alg 1", sc->name, "median return (s)", m[0].return_median_s,
+                    m[1].return_median_s, m[2].return_median_s, m[2].return_median_s <= m[0].return_median_s,
+                    &missed);
+            verdict("no acc: fewer switchings/step", sc->name, "switchings per step", m[0].switchings_per_step,
+                    m[1].switchings_per_step, m[2].switchings_per_step,
+                    m[2].switchings_per_step < m[0].switchings_per_step, &missed);
+            verdict("no acc: no more air vented", sc->name, "air vented (kg)", m[0].vented_kg, m[1].vented_kg,
+                    m[2].vented_kg, m[2].vented_kg <= m[0].vented_kg, &missed);
+        }
+        verdict("overshoot after a return <= 0.05 in", sc->name, "overshoot (in)", m[0].overshoot_max_m * IN_PER_M,
+                m[1].overshoot_max_m * IN_PER_M, m[2].overshoot_max_m * IN_PER_M,
+                m[2].overshoot_max_m * IN_PER_M <= 0.05, &missed);
+    }
+    printf("  %u target line(s) missed\n", missed);
+    return missed;
+}
+
+static void json_metrics(FILE *f, const ctlbench_metrics *m)
+{
+    fprintf(f, "{\"algorithm\": %d, \"return_median_s\": %.3f, \"return_worst_s\": %.3f, \"unsettled_steps\": %u, "
+               "\"overshoot_in\": %.4f, \"switchings_per_step\": %.3f, \"switchings\": %u, ",
+            m->algorithm, m->return_median_s, m->return_worst_s, m->unsettled_steps, m->overshoot_max_m * IN_PER_M,
+            m->switchings_per_step, m->switchings);
+    if (!isnan(m->rest_switchings_per_min))
+        fprintf(f, "\"rest_switchings\": %u, \"rest_switchings_per_min\": %.3f, \"rest_outside_s\": %.2f, ",
+                m->rest_switchings, m->rest_switchings_per_min, m->rest_outside_s);
+    fprintf(f, "\"compressor_on_s\": %.2f, \"vented_kg\": %.5f, \"outside_s\": %.2f, \"latched_faults\": %u, \"steps\": [",
+            m->compressor_on_s, m->vented_kg, m->outside_s, m->latched_faults);
+    for (size_t k = 0; k < m->step_count; k++)
+        fprintf(f, "%s{\"t_s\": %.2f, \"load_change_lbf\": %.0f, \"first_entry_s\": %.3f, \"return_s\": %.3f, "
+                   "\"settled\": %s, \"overshoot_in\": %.4f, \"switchings\": %u}",
+                k ? ", " : "", m->step[k].t_s, m->step[k].load_change_n / PLANT_N_PER_LBF, m->step[k].first_entry_s,
+                m->step[k].return_s, m->step[k].settled ? "true" : "false", m->step[k].overshoot_m * IN_PER_M,
+                m->step[k].switchings);
+    fprintf(f, "]}");
+}
+
+static int write_json(const char *dir, const scored *s, size_t n)
+{
+    char path[1200], tmp[1220];
+    snprintf(path, sizeof path, "%s/scorecard.json", dir);
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    FILE *f = fopen(tmp, "w");
+    if (!f) {
+        fprintf(stderr, "leveler-ctlbench: %s: %s\n", tmp, strerror(errno));
+        return -1;
+    }
+    fprintf(f, "{\"scenarios\": [\n");
+    for (size_t i = 0; i < n; i++) {
+        fprintf(f, "%s {\"name\": \"%s\", \"config\": \"%s\", \"noise_counts\": %g, \"end_s\": %.0f, \"runs\": [",
+                i ? ",\n" : "", s[i].sc.name, s[i].sc.config, s[i].sc.noise_counts, s[i].sc.end_s);
+        for (int a = 0; a < 3; a++) {
+            fputs(a ? ", " : "", f);
+            json_metrics(f, &s[i].m[a]);
+        }
+        fprintf(f, "]}");
+    }
+    fprintf(f, "\n]}\n");
+    if (fclose(f) != 0 || rename(tmp, path) != 0) {
+        fprintf(stderr, "leveler-ctlbench: writing %s failed: %s\n", path, strerror(errno));
+        return -1;
+    }
+    return 0;
+}
+
+/* One python run draws every scenario's PNG from its three logs. */
+static int plot_all(const char *dir, const scored *s, size_t n)
+{
+    const char *args[MAX_SCENARIOS + 4];
+    size_t k = 0;
+    args[k++] = "--dir";
+    args[k++] = dir;
+    for (size_t i = 0; i < n && k < MAX_SCENARIOS + 3; i++)
+        args[k++] = s[i].sc.name;
+    args[k] = NULL;
+    int rc = sim_python_module("leveler-ctlbench", "ctlbench_plot", args);
+    if (rc == -2)
+        fprintf(stderr, "leveler-ctlbench: %s/leveler/ctlbench_plot.py missing; no PNGs\n", sim_python_scripts_dir());
+    return rc == 0 ? 0 : -1;
+}
+
+static void usage(FILE *f)
+{
+    fprintf(f, "usage: leveler-ctlbench [--out DIR] [--configs DIR] [--short] [--no-plots]\n"
+               "  --out DIR      logs, one PNG per scenario and scorecard.json (default build/ctlbench)\n"
+               "  --configs DIR  the INI files (default <source>/host_sim/configs)\n"
+               "  --short        the acceptance test's short suite\n"
+               "  --no-plots     no logs and no PNGs (figures only)\n");
+}
+
+static int run_all(const char *configs, const char *out, bool plots, scored *s, size_t n)
+{
+    size_t cap = ctlbench_rows_needed(&s[0].sc, 1);
+    for (size_t i = 1; i < n; i++)
+        cap = ctlbench_rows_needed(&s[i].sc, 1) > cap ? ctlbench_rows_needed(&s[i].sc, 1) : cap;
+    runlog_row *rows = malloc(cap * sizeof *rows);
+    if (!rows) {
+        fprintf(stderr, "leveler-ctlbench: out of memory for %zu rows\n", cap);
+        return -1;
+    }
+    char err[1024], log[1200];
+    int rc = 0;
+    for (size_t i = 0; i < n && rc == 0; i++) {
+        fprintf(stderr, "leveler-ctlbench: [%zu/%zu] %s\n", i + 1, n, s[i].sc.name);
+        for (int a = 1; a <= 3 && rc == 0; a++) {
+            snprintf(log, sizeof log, "%s/%s-alg%d.csv", out, s[i].sc.name, a);
+            if (ctlbench_run(&s[i].sc, a, configs, plots ? log : NULL, rows, cap, &s[i].m[a - 1], err, sizeof err) != 0) {
+                fprintf(stderr, "leveler-ctlbench: %s, algorithm %d: %s\n", s[i].sc.name, a, err);
+                rc = -1;
+            }
+        }
+    }
+    free(rows);
+    return rc;
+}
+
+int main(int argc, char **argv)
+{
+    const char *out = "build/ctlbench", *configs = LEVELER_SOURCE_DIR "/host_sim/configs";
+    bool short_suite = false, plots = true;
+    for (int i = 1; i < argc; i++) {
+        if (strcmp(argv[i], "--short") == 0)
+            short_suite = true;
+        else if (strcmp(argv[i], "--no-plots") == 0)
+            plots = false;
+        else if ((strcmp(argv[i], "--out") == 0 || strcmp(argv[i], "--configs") == 0) && i + 1 < argc)
+            *(strcmp(argv[i], "--out") == 0 ? &out : &configs) = argv[i + 1], i++;
+        else {
+            usage(strcmp(argv[i], "-h") == 0 || strcmp(argv[i], "--help") == 0 ? stdout : stderr);
+            return strcmp(argv[i], "-h") == 0 || strcmp(argv[i], "--help") == 0 ? 0 : 2;
+        }
+    }
+    if (mkdir(out, 0777) != 0 && errno != EEXIST) {
+        fprintf(stderr, "leveler-ctlbench: cannot create %s: %s\n", out, strerror(errno));
+        return 2;
+    }
+    static scored s[MAX_SCENARIOS];
+    static ctlbench_scenario suite[MAX_SCENARIOS];
+    size_t n = ctlbench_suite(short_suite, suite, MAX_SCENARIOS);
+    for (size_t i = 0; i < n; i++)
+        s[i].sc = suite[i];
+    if (run_all(configs, out, plots, s, n) != 0)
+        return 1;
+    printf("leveler controller scorecard: algorithms 1 and 2 (the thesis's) and 3 (docs/controller.md),\n"
+           "firmware in the loop, product defaults (algorithms 1 and 2 without the chatter fault, as published);\n"
+           "times from the load step; fault codes: 1 overpressure, 2 run time, 3 stall, 4-7 sensors, 8 chatter\n");
+    for (size_t i = 0; i < n; i++)
+        print_scenario(&s[i]);
+    print_targets(s, n);
+    if (write_json(out, s, n) != 0 || (plots && plot_all(out, s, n) != 0))
+        return 1;
+    printf("\nwritten: %s/scorecard.json%s\n", out, plots ? " and one PNG per scenario" : "");
+    return 0;
+}

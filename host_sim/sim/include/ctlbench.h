@@ -1,0 +1,79 @@
+/*
+ * Controller benchmark (a scorecard, not a timed test): a suite of scenarios
+ * run with the firmware in the loop (sim_run) for algorithms 1, 2 and 3, and
+ * the control-quality figures of each run. docs/controller.md defines every
+ * figure; leveler-ctlbench prints them (ctlbench_main.c), the acceptance test
+ * (tests/sim/test_ctlbench.c) runs the short suite.
+ */
+#ifndef LEVELER_CTLBENCH_H
+#define LEVELER_CTLBENCH_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "simloop.h"
+
+#define CTLBENCH_MAX_STEPS 64
+#define CTLBENCH_NAME_MAX 64
+
+typedef enum { CTLBENCH_THESIS = 0, CTLBENCH_REST = 1, CTLBENCH_RANDOM = 2 } ctlbench_kind;
+
+typedef struct {
+    char name[CTLBENCH_NAME_MAX];
+    char config[CTLBENCH_NAME_MAX]; /* file name under the configs folder */
+    int kind;                       /* ctlbench_kind */
+    double noise_counts;            /* sensor noise, standard deviation in ADC counts */
+    uint32_t noise_seed;
+    sim_load_step steps[CTLBENCH_MAX_STEPS]; /* steps[0] at 0 s is the base load */
+    size_t step_count;
+    double end_s;
+    double rest_from_s, rest_to_s;  /* REST: the window at rest that is scored */
+} ctlbench_scenario;
+
+/* One load step (steps[1..]): from its time to the next step's (or the end). */
+typedef struct {
+    double t_s;
+    double load_change_n;
+    bool left_band;        /* the platform went outside the band in the window */
+    bool settled;          /* in the band at the end of the window */
+    double first_entry_s;  /* back in the band the first time, after the step (0: never left) */
+    double return_s;       /* in the band and staying there until the window's end (window length if not) */
+    double overshoot_m;    /* after the first entry: farthest outside the band */
+    unsigned switchings;   /* ticks on which any output changed */
+} ctlbench_step;
+
+typedef struct {
+    int algorithm;
+    size_t step_count;
+    ctlbench_step step[CTLBENCH_MAX_STEPS];
+    double return_median_s, return_worst_s;
+    unsigned unsettled_steps;
+    double overshoot_max_m;
+    double switchings_per_step;
+    unsigned switchings;        /* whole run */
+    double rest_switchings_per_min; /* REST window (NAN otherwise) */
+    unsigned rest_switchings;
+    double rest_outside_s;
+    double compressor_on_s;
+    double vented_kg;
+    double outside_s;           /* time outside the band over the whole run */
+    uint16_t latched_faults;    /* firmware latched fault bits at the end */
+} ctlbench_metrics;
+
+/* The suite: full (the issue's scenarios) or short (the acceptance test's).
+ * Fills out[0..cap-1]; returns the count. */
+size_t ctlbench_suite(bool short_suite, ctlbench_scenario *out, size_t cap);
+
+/*
+ * Run one scenario with one algorithm. configs_dir holds the INI files;
+ * log_path (optional) receives the run log. rows/rows_cap: a caller buffer of
+ * at least end_s/0.01 + 2 rows. 0 or -1 with a message in err.
+ */
+int ctlbench_run(const ctlbench_scenario *sc, int algorithm, const char *configs_dir, const char *log_path,
+                 runlog_row *rows, size_t rows_cap, ctlbench_metrics *m, char *err, size_t err_len);
+
+/* Rows the longest scenario of a suite needs. */
+size_t ctlbench_rows_needed(const ctlbench_scenario *sc, size_t count);
+
+#endif /* LEVELER_CTLBENCH_H */
