@@ -139,7 +139,8 @@ static void idle(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32
 }
 
 /* Rest height if the valves closed now, from the pressure: the excess over the
- * up line (or under the down line) coasts alg3_coast_k_pa_per_mm per mm.
+ * up line (or under the down line) carries the platform alg3_coast_k_up/down
+ * Pa per mm.
  * Returns h when the line is not known for the present load. */
 static int32_t line_prediction(const leveler_alg3 *a, const leveler_settings *set, bool up, int32_t h,
                                int32_t p_spring_pa)
@@ -152,7 +153,8 @@ static int32_t line_prediction(const leveler_alg3 *a, const leveler_settings *se
     if (excess <= 0) {
         return h;
     }
-    int64_t travel_um = leveler_div_round_i64(excess * 1000, set->alg3_coast_k_pa_per_mm);
+    int32_t k = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
+    int64_t travel_um = leveler_div_round_i64(excess * 1000, k);
     return leveler_sat_i32(up ? (int64_t)h + travel_um : (int64_t)h - travel_um);
 }
 
@@ -176,23 +178,24 @@ static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int3
                        : (stretched(h, by_rate) < stretched(h, by_line) ? stretched(h, by_rate) : stretched(h, by_line));
     bool coasts_there = up ? early >= target : early <= target;
     if (there || coasts_there) {
-        leveler_alg3_note_close(a, up ? 1 : -1, p_spring_pa);
+        leveler_alg3_note_close(a, up ? 1 : -1, p_spring_pa, leveler_alg3_line_estimate(a, set, up, h));
         enter(a, LEVELER_ALG3_SETTLING, now_ms);
     }
 }
 
 /* Valves closed until the platform is at rest (or alg3_settle_ms); then the
  * coast is learnt from. */
-static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa, uint32_t now_ms,
+static void settling(leveler_alg3 *a, const leveler_settings *set, uint32_t now_ms,
                      leveler_settings *learnt, bool *changed)
 {
     uint32_t in_phase = now_ms - a->phase_start_ms;
     bool at_rest = a->watch.still_ms >= LEVELER_ALG3_SETTLE_REST_MS;
     if (at_rest || in_phase >= set->alg3_settle_ms) {
         if (at_rest) {
-            leveler_alg3_learn_coast(a, set, p_spring_pa, learnt, changed);
+            leveler_alg3_learn_coast(a, set, learnt, changed);
         }
         a->watch.close_valid = false;
+        a->watch.close_dir = 0;
         enter(a, LEVELER_ALG3_IDLE, now_ms);
     }
 }
@@ -257,7 +260,7 @@ leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings 
     if (a->phase == LEVELER_ALG3_IDLE) {
         idle(a, set, h, now_ms);
     } else if (a->phase == LEVELER_ALG3_SETTLING) {
-        settling(a, set, p_spring_pa, now_ms, learnt, learnt_changed);
+        settling(a, set, now_ms, learnt, learnt_changed);
     } else {
         moving(a, set, h, p_spring_pa, now_ms);
     }

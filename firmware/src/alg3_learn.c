@@ -22,7 +22,7 @@ static void begin(const leveler_settings *set, leveler_settings *learnt, bool *c
     }
 }
 
-void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir, int32_t p_spring_pa)
+void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir, int32_t p_spring_pa, int32_t line_pa)
 {
     int32_t along = dir > 0 ? a->rate_um_s : -a->rate_um_s;
     a->watch.close_valid = along >= LEVELER_ALG3_COAST_MIN_RATE_UM_S;
@@ -30,6 +30,7 @@ void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir, int32_t p_spring_pa)
     a->watch.close_height_um = leveler_alg3_height_um(a);
     a->watch.close_rate_um_s = a->rate_um_s;
     a->watch.close_p_spring_pa = p_spring_pa;
+    a->watch.close_line_pa = line_pa;
 }
 
 /* Halfway from old towards seen, clamped to [lo, hi]; seen outside is ignored (returns old). */
@@ -41,43 +42,64 @@ static int32_t towards(int32_t old, int64_t seen, int32_t lo, int32_t hi)
     return (int32_t)(((int64_t)old + seen + 1) / 2);
 }
 
-void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa,
-                              leveler_settings *learnt, bool *changed)
+/* Coast time: travel / rate at the close (a close slower than
+ * COAST_MIN_RATE teaches none). */
+static int32_t coast_time_seen(const leveler_alg3_watch *w, int64_t travel_um, int32_t old)
+{
+    if (!w->close_valid) {
+        return old;
+    }
+    int64_t rate = w->close_rate_um_s;
+    int64_t tau_ms = leveler_div_round_i64(travel_um * 1000 * (rate < 0 ? -1 : 1), rate < 0 ? -rate : rate);
+    return towards(old, tau_ms, LEVELER_ALG3_COAST_MIN_MS, LEVELER_ALG3_COAST_MAX_MS);
+}
+
+/* Coast stiffness: the excess over the line at the close / the travel it gave. */
+static int32_t coast_k_seen(const leveler_alg3_watch *w, bool up, int64_t travel_um, int32_t old)
+{
+    if (w->close_line_pa == 0) {
+        return old;
+    }
+    int64_t excess = up ? (int64_t)w->close_p_spring_pa - w->close_line_pa
+                        : (int64_t)w->close_line_pa - w->close_p_spring_pa;
+    int64_t along_um = up ? travel_um : -travel_um;
+    if (excess <= 0 || along_um <= 0) {
+        return old;
+    }
+    return towards(old, leveler_div_round_i64(excess * 1000, along_um), LEVELER_ALG3_K_MIN_PA_PER_MM,
+                   LEVELER_ALG3_K_MAX_PA_PER_MM);
+}
+
+void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,
+                              bool *changed)
 {
     leveler_alg3_watch *w = &a->watch;
-    bool valid = w->close_valid && set->alg3_learn != 0u;
-    w->close_valid = false;
     int64_t travel_um = (int64_t)leveler_alg3_height_um(a) - w->close_height_um;
     if (!w->moved && !w->line_fresh) {
-        /* closed on the estimate from the last stop, and nothing moved: the
-         * line lies beyond it; fill or vent on until the platform breaks away */
+        /* closed on an estimate and nothing moved: the line lies beyond it;
+         * fill or vent on until the platform breaks away */
         w->end_valid = false;
+        w->lines_valid = false;
     }
-    if (!valid || travel_um == 0) {
+    if (set->alg3_learn == 0u || w->close_dir == 0) {
         return;
     }
-    /* travel / rate: both signed the same way for a plausible coast */
-    int64_t tau_ms = leveler_div_round_i64(travel_um * 1000 * (w->close_rate_um_s < 0 ? -1 : 1),
-                                           w->close_rate_um_s < 0 ? -(int64_t)w->close_rate_um_s
-                                                                  : (int64_t)w->close_rate_um_s);
-    /* trapped air: P2 falls as the platform rises (and rises as it falls) */
-    int64_t dp = (int64_t)w->close_p_spring_pa - p_spring_pa;
-    int64_t k = leveler_div_round_i64(dp * 1000 * (travel_um < 0 ? -1 : 1), travel_um < 0 ? -travel_um : travel_um) +
-                set->alg3_line_slope_pa_per_mm;
     bool up = w->close_dir > 0;
     int32_t old_tau = up ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
-    int32_t new_tau = towards(old_tau, tau_ms, LEVELER_ALG3_COAST_MIN_MS, LEVELER_ALG3_COAST_MAX_MS);
-    int32_t new_k = towards(set->alg3_coast_k_pa_per_mm, k, LEVELER_ALG3_K_MIN_PA_PER_MM,
-                            LEVELER_ALG3_K_MAX_PA_PER_MM);
-    if (new_tau == old_tau && new_k == set->alg3_coast_k_pa_per_mm) {
+    int32_t old_k = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
+    int32_t new_tau = coast_time_seen(w, travel_um, old_tau);
+    int32_t new_k = coast_k_seen(w, up, travel_um, old_k);
+    w->close_dir = 0;
+    if (new_tau == old_tau && new_k == old_k) {
         return;
     }
     begin(set, learnt, changed);
-    learnt->alg3_coast_k_pa_per_mm = new_k;
     if (up) {
         learnt->alg3_coast_up_ms = (uint16_t)new_tau;
+        learnt->alg3_coast_k_up_pa_per_mm = new_k;
     } else {
         learnt->alg3_coast_down_ms = (uint16_t)new_tau;
+        learnt->alg3_coast_k_down_pa_per_mm = new_k;
     }
 }
 
@@ -91,7 +113,7 @@ static int32_t p_spring_at_start(const leveler_alg3 *a)
 }
 
 /* A point (h, P2) on the up (dir > 0) or down line, referred to the target. */
-static bool line_point(const leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_spring_pa,
+static bool line_point(leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_spring_pa,
                        leveler_settings *learnt, bool *changed)
 {
     int32_t h = leveler_alg3_height_um(a);
@@ -104,6 +126,7 @@ static bool line_point(const leveler_alg3 *a, const leveler_settings *set, int8_
         return false;
     }
     begin(set, learnt, changed);
+    a->watch.lines_valid = true;
     if (dir > 0) {
         learnt->alg3_up_pa = (int32_t)p;
         if (learnt->alg3_down_pa >= learnt->alg3_up_pa) {
@@ -127,9 +150,11 @@ static int32_t along_slope(const leveler_settings *set, int32_t p_pa, int32_t fr
 int32_t leveler_alg3_line_estimate(const leveler_alg3 *a, const leveler_settings *set, bool up, int32_t h)
 {
     const leveler_alg3_watch *w = &a->watch;
-    if (w->line_fresh) {
+    if (w->line_fresh || w->lines_valid) {
         int32_t at_target = up ? set->alg3_up_pa : set->alg3_down_pa;
-        return at_target == 0 ? 0 : along_slope(set, at_target, leveler_alg3_target_um(set), h);
+        if (at_target != 0) {
+            return along_slope(set, at_target, leveler_alg3_target_um(set), h);
+        }
     }
     if (!w->end_valid) {
         return 0;
@@ -173,6 +198,9 @@ void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_
     if (rate > LEVELER_ALG3_MOVING_UM_S || rate < -LEVELER_ALG3_MOVING_UM_S) {
         int8_t dir = rate > 0 ? 1 : -1;
         w->moved = true;
+        if (a->phase == LEVELER_ALG3_IDLE) {
+            w->lines_valid = false; /* nobody asked for this motion: the load has changed */
+        }
         bool breaks_away = w->motion == 0 && ((dir > 0 && a->phase == LEVELER_ALG3_FILLING) ||
                                               (dir < 0 && a->phase == LEVELER_ALG3_VENTING));
         if (learn && breaks_away) {

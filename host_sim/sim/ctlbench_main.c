@@ -190,13 +190,15 @@ static int write_json(const char *dir, const scored *s, size_t n)
 }
 
 /* One python run draws every scenario's PNG from its three logs. */
-static int plot_all(const char *dir, const scored *s, size_t n)
+static int plot_all(const char *dir, const char *configs, const scored *s, size_t n)
 {
-    const char *args[MAX_SCENARIOS + 4];
+    const char *args[MAX_SCENARIOS + 6];
     size_t k = 0;
     args[k++] = "--dir";
     args[k++] = dir;
-    for (size_t i = 0; i < n && k < MAX_SCENARIOS + 3; i++)
+    args[k++] = "--configs";
+    args[k++] = configs;
+    for (size_t i = 0; i < n && k < MAX_SCENARIOS + 5; i++)
         args[k++] = s[i].sc.name;
     args[k] = NULL;
     int rc = sim_python_module("leveler-ctlbench", "ctlbench_plot", args);
@@ -273,7 +275,7 @@ int main(int argc, char **argv)
     for (size_t i = 0; i < n; i++)
         print_scenario(&s[i]);
     print_targets(s, n);
-    if (write_json(out, s, n) != 0 || (plots && plot_all(out, s, n) != 0))
+    if (write_json(out, s, n) != 0 || (plots && plot_all(out, configs, s, n) != 0))
         return 1;
     printf("\nwritten: %s/scorecard.json%s\n", out, plots ? " and one PNG per scenario" : "");
     return 0;

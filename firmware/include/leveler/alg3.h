@@ -63,7 +63,7 @@ typedef enum {
 #define LEVELER_ALG3_ACC_HELP_PA 6895     /* P3 must exceed P2 by 1 psi for its valve to open in a fill */
 #define LEVELER_ALG3_LINE_REACH_UM 50800  /* line points farther than 2 in from the target are not used */
 #define LEVELER_ALG3_LINE_MIN_PA 120000   /* a spring carrying the platform holds more than this (abs) */
-#define LEVELER_ALG3_COAST_MIN_RATE_UM_S 3000 /* closes slower than this teach no coast time */
+#define LEVELER_ALG3_COAST_MIN_RATE_UM_S 12000 /* closes slower than this (0.47 in/s) teach no coast time */
 #define LEVELER_ALG3_COAST_MIN_MS 20
 #define LEVELER_ALG3_COAST_MAX_MS 5000
 #define LEVELER_ALG3_K_MIN_PA_PER_MM 50
@@ -87,6 +87,8 @@ typedef struct {
     bool line_fresh;          /* the line of the present move was learnt in this move */
     bool ended;               /* the present motion's end is recorded */
     bool moved;               /* the platform moved since the present fill or vent began */
+    bool lines_valid;         /* alg3_up_pa / alg3_down_pa were learnt under the present load */
+    int32_t close_line_pa;    /* the line of the move at the close, 0 unknown */
     bool end_valid;           /* where the last motion ended: on the up (+1) or down (-1) line */
     int8_t end_dir;
     int32_t end_height_um;
@@ -149,16 +151,19 @@ int32_t leveler_alg3_height_um(const leveler_alg3 *a);
 void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa, uint32_t dt_ms,
                         leveler_settings *learnt, bool *changed);
 /* Record a closing move (fill or vent ended by prediction) for coast learning. */
-void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir, int32_t p_spring_pa);
+void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir, int32_t p_spring_pa, int32_t line_pa);
 /* At rest after a close: learn the coast time (travel / rate at the close) and
- * the coast stiffness (P2 change / travel + line slope) from the recorded close. */
-void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa,
-                              leveler_settings *learnt, bool *changed);
+ * the coast stiffness (excess over the line at the close / travel) from the
+ * recorded close; a close on an estimate after which nothing moved forgets
+ * the estimate. */
+void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,
+                              bool *changed);
 
 /* The up (or down) line at height h for the present load, Pa absolute, 0 when
- * unknown: the point learnt when the platform broke away in this move; else
- * where the last motion stopped (on the line of that motion), along the line
- * slope, plus (or minus) alg3_gap_pa when that was the other line. */
+ * unknown: the learnt line (alg3_up_pa / alg3_down_pa along the slope) when it
+ * was learnt in this move or since the last load change (a motion nobody
+ * asked for); else where the last motion stopped (on the line of that
+ * motion), plus (or minus) alg3_gap_pa when that was the other line. */
 int32_t leveler_alg3_line_estimate(const leveler_alg3 *a, const leveler_settings *set, bool up, int32_t h);
 
 /* Predicted rest height (um) if the valves closed now: height + rate * coast. */

@@ -61,7 +61,8 @@ typedef struct {
     int32_t alg3_line_slope_pa_per_mm;
     int32_t alg3_up_pa;            /* learnt, 0 = not yet */
     int32_t alg3_down_pa;          /* learnt, 0 = not yet */
-    int32_t alg3_coast_k_pa_per_mm; /* learnt */
+    int32_t alg3_coast_k_up_pa_per_mm;   /* learnt */
+    int32_t alg3_coast_k_down_pa_per_mm; /* learnt */
     int32_t alg3_gap_pa;           /* learnt */
 } leveler_settings;
 
