@@ -66,8 +66,11 @@ static int32_t coast_k_seen(const leveler_alg3_watch *w, bool up, int64_t travel
     if (excess <= 0 || along_um <= 0) {
         return old;
     }
-    return towards(old, leveler_div_round_i64(excess * 1000, along_um), LEVELER_ALG3_K_MIN_PA_PER_MM,
-                   LEVELER_ALG3_K_MAX_PA_PER_MM);
+    int64_t seen = leveler_div_round_i64(excess * 1000, along_um);
+    if (seen * LEVELER_ALG3_K_FACTOR < old || seen > (int64_t)old * LEVELER_ALG3_K_FACTOR) {
+        return old; /* a coast disturbed (a load change in it) teaches nothing */
+    }
+    return towards(old, seen, LEVELER_ALG3_K_MIN_PA_PER_MM, LEVELER_ALG3_K_MAX_PA_PER_MM);
 }
 
 void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,

@@ -68,6 +68,7 @@ typedef enum {
 #define LEVELER_ALG3_COAST_MAX_MS 5000
 #define LEVELER_ALG3_K_MIN_PA_PER_MM 50
 #define LEVELER_ALG3_K_MAX_PA_PER_MM 20000
+#define LEVELER_ALG3_K_FACTOR 3          /* a coast stiffness seen more than 3x off the learnt one is rejected */
 #define LEVELER_ALG3_FAST_UM_S 12000     /* a move this fast (0.47 in/s) heading out of the band is a load change */
 #define LEVELER_ALG3_SETTLE_REST_MS 1000u /* a settle ends after this long at rest */
 #define LEVELER_ALG3_EARLY_NUM 5          /* predicted travel x 5/4: an early close is cheap, a late one costs the gap */

@@ -37,9 +37,10 @@ typedef struct {
     double load_change_n;
     bool left_band;        /* the platform went outside the band in the window */
     bool settled;          /* in the band at the end of the window */
-    double first_entry_s;  /* back in the band the first time, after the step (0: never left) */
+    double first_entry_s;  /* back in the band the first time, 1 s or more after the step (0: never left) */
     double return_s;       /* in the band and staying there until the window's end (window length if not) */
-    double overshoot_m;    /* after the first entry: farthest outside the band */
+    double overshoot_m;    /* after the first entry: farthest outside the band (shooting through it, or a
+                            * later departure within the step's window) */
     unsigned switchings;   /* ticks on which any output changed */
 } ctlbench_step;
 
