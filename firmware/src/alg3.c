@@ -140,17 +140,11 @@ static void idle(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32
 
 /* Rest height if the valves closed now, from the pressure: the excess over the
  * up line (or under the down line) carries the platform alg3_coast_k_up/down
- * Pa per mm.
- * Returns h when the line is not known for the present load. */
-static int32_t line_prediction(const leveler_alg3 *a, const leveler_settings *set, bool up, int32_t h,
-                               int32_t p_spring_pa)
+ * Pa per mm. line_pa 0 (unknown) or no excess: h. */
+static int32_t line_prediction(const leveler_settings *set, bool up, int32_t h, int32_t p_spring_pa, int32_t line_pa)
 {
-    int32_t line = leveler_alg3_line_estimate(a, set, up, h);
-    if (line == 0) {
-        return h;
-    }
-    int64_t excess = up ? (int64_t)p_spring_pa - line : (int64_t)line - p_spring_pa;
-    if (excess <= 0) {
+    int64_t excess = up ? (int64_t)p_spring_pa - line_pa : (int64_t)line_pa - p_spring_pa;
+    if (line_pa == 0 || excess <= 0) {
         return h;
     }
     int32_t k = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
@@ -164,21 +158,27 @@ static int64_t stretched(int32_t h, int32_t pred)
     return (int64_t)h + ((int64_t)pred - h) * LEVELER_ALG3_EARLY_NUM / LEVELER_ALG3_EARLY_DEN;
 }
 
-/* Filling or venting: close when either prediction reaches the target, or
- * the platform is there, or has gone through the band. */
-static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int32_t p_spring_pa, uint32_t now_ms)
+bool leveler_alg3_close_now(const leveler_settings *set, bool up, int32_t h, int32_t rate_um_s, int32_t p_spring_pa,
+                            int32_t line_pa)
 {
     int32_t target = leveler_alg3_target_um(set);
+    int32_t along = up ? rate_um_s : -rate_um_s;
+    uint16_t coast = up ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
+    int64_t by_rate = along > LEVELER_ALG3_STILL_UM_S ? stretched(h, leveler_alg3_predict_um(h, rate_um_s, coast)) : h;
+    int64_t by_line = stretched(h, line_prediction(set, up, h, p_spring_pa, line_pa));
+    if (up) {
+        return h >= target || h > set->band_upper_um || by_rate >= target || by_line >= target;
+    }
+    return h <= target || h < set->band_lower_um || by_rate <= target || by_line <= target;
+}
+
+/* Filling or venting: close when leveler_alg3_close_now() says so. */
+static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int32_t p_spring_pa, uint32_t now_ms)
+{
     bool up = a->phase == LEVELER_ALG3_FILLING;
-    int32_t rate = up ? a->rate_um_s : -a->rate_um_s; /* along the move */
-    int32_t by_rate = rate > LEVELER_ALG3_STILL_UM_S ? rate_prediction(a, set, h) : h;
-    int32_t by_line = line_prediction(a, set, up, h, p_spring_pa);
-    bool there = up ? (h >= target || h > set->band_upper_um) : (h <= target || h < set->band_lower_um);
-    int64_t early = up ? (stretched(h, by_rate) > stretched(h, by_line) ? stretched(h, by_rate) : stretched(h, by_line))
-                       : (stretched(h, by_rate) < stretched(h, by_line) ? stretched(h, by_rate) : stretched(h, by_line));
-    bool coasts_there = up ? early >= target : early <= target;
-    if (there || coasts_there) {
-        leveler_alg3_note_close(a, up ? 1 : -1, p_spring_pa, leveler_alg3_line_estimate(a, set, up, h));
+    int32_t line = leveler_alg3_line_estimate(a, set, up, h);
+    if (leveler_alg3_close_now(set, up, h, a->rate_um_s, p_spring_pa, line)) {
+        leveler_alg3_note_close(a, up ? 1 : -1, p_spring_pa, line);
         enter(a, LEVELER_ALG3_SETTLING, now_ms);
     }
 }

@@ -1,6 +1,7 @@
 /* The app loop end to end on the fake HAL: power-up, control transitions, manual mode, LED. */
 #include "test_support.h"
 
+#include "leveler/alg3.h"
 #include "leveler/regmap.h"
 #include "leveler/regmap_addr.h"
 #include "leveler/status.h"
@@ -79,6 +80,35 @@ static void test_algorithm2_through_registers(void **state)
     set_sensors(ABOVE_UM, P_NOMINAL_PA, P_NOMINAL_PA, 500000);
     run_ticks(2);
     assert_true(outputs(0, 1, 1, 1));
+}
+
+/* Algorithm 3 through the register map: selected at run time, reports its phase,
+ * waits for a confirmed departure, and leaves P3 out without an accumulator. */
+static void test_algorithm3_through_registers(void **state)
+{
+    (void)state;
+    boot_valid();
+    assert_int_equal(write_hr_u16(LEVELER_HR_ALGORITHM, LEVELER_ALGO_HYSTERESIS_AWARE, NULL), LEVELER_REG_OK);
+    set_sensors(MID_BAND_UM, P_NOMINAL_PA, P_NOMINAL_PA, P_NOMINAL_PA);
+    run_ticks(100);
+    assert_true(outputs(0, 0, 0, 0));
+    assert_int_equal(read_ir_u16(LEVELER_IR_ALG3_PHASE), LEVELER_ALG3_IDLE);
+    /* 0.02 in under the band: confirmed once 250 um*s have gathered, about half a second */
+    set_sensors(leveler_settings_current()->band_lower_um - 500.0, P_NOMINAL_PA, P_NOMINAL_PA, P_NOMINAL_PA);
+    fake_hal_set_adc(HAL_ADC_P_ACC, 0); /* no accumulator, no P3 transducer */
+    run_ticks(30);
+    assert_true(outputs(0, 0, 0, 0));
+    run_ticks(40);
+    assert_true(outputs(1, 1, 0, 0));
+    assert_int_equal(read_ir_u16(LEVELER_IR_ALG3_PHASE), LEVELER_ALG3_FILLING);
+    assert_int_equal(read_ir_u16(LEVELER_IR_CONTROL_STATE), LEVELER_STATE_CHARGING);
+    assert_int_equal(read_ir_u16(LEVELER_IR_ALG3_MOVES), 1);
+    assert_int_equal(read_ir_u16(LEVELER_IR_LATCHED_FAULT_BITS), 0);
+    /* mode off: safe, and algorithm 3 starts again from idle */
+    assert_int_equal(write_hr_u16(LEVELER_HR_MODE, LEVELER_MODE_OFF, NULL), LEVELER_REG_OK);
+    run_ticks(2);
+    assert_true(outputs(0, 0, 0, 0));
+    assert_int_equal(read_ir_u16(LEVELER_IR_ALG3_PHASE), LEVELER_ALG3_IDLE);
 }
 
 static void test_mode_off_and_manual(void **state)
@@ -193,6 +223,7 @@ int main(void)
         cmocka_unit_test(test_power_up_safe_until_sensors_valid),
         cmocka_unit_test(test_algorithm1_transitions),
         cmocka_unit_test(test_algorithm2_through_registers),
+        cmocka_unit_test(test_algorithm3_through_registers),
         cmocka_unit_test(test_mode_off_and_manual),
         cmocka_unit_test(test_sensor_fault_safe_and_led),
         cmocka_unit_test(test_unused_p3_channel_needs_no_transducer),

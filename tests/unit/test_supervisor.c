@@ -228,6 +228,55 @@ static void test_counters_saturate(void **state)
     assert_int_equal(sv.last_fault_code, LEVELER_FAULT_OVERPRESSURE);
 }
 
+/* Chatter: more switchings in a minute than the limit latch fault 8 and the safe state until cleared. */
+static void test_chatter_fault(void **state)
+{
+    (void)state;
+    static const leveler_outputs off = {false, false, false, false};
+    set.chatter_max_per_min = 10;
+    unsigned n = 0;
+    while ((sv.latched_bits & LEVELER_FAULT_BIT(LEVELER_FAULT_CHATTER)) == 0u && n < 100) {
+        step((n % 2) ? &off : &fill, LEVELER_MODE_AUTO);
+        n++;
+    }
+    assert_int_equal(n, 12); /* the first step sets the outputs; the 11th switching after it is one too many */
+    assert_true(all_off());
+    assert_int_equal(sv.last_fault_code, LEVELER_FAULT_CHATTER);
+    assert_int_not_equal(sv.latched_bits & LEVELER_FAULT_BIT(LEVELER_FAULT_CHATTER), 0);
+    assert_int_equal(sv.fault_count[4], 1);
+    for (unsigned i = 0; i < 7000; i++) { /* 70 s of a quiet request: still latched */
+        step(&fill, LEVELER_MODE_AUTO);
+    }
+    assert_true(all_off());
+    leveler_supervisor_clear(&sv);
+    step(&fill, LEVELER_MODE_AUTO);
+    assert_true(out.compressor && out.spring_valve);
+    assert_int_equal(sv.latched_bits, 0);
+}
+
+/* The window is a minute: ten switchings every 70 s never trip a limit of 10; limit 0 = off. */
+static void test_chatter_window_and_off(void **state)
+{
+    (void)state;
+    static const leveler_outputs off = {false, false, false, false};
+    set.chatter_max_per_min = 10;
+    for (unsigned burst = 0; burst < 5; burst++) {
+        for (unsigned i = 0; i < 10; i++) {
+            step((i % 2) ? &off : &fill, LEVELER_MODE_AUTO);
+        }
+        for (unsigned i = 0; i < 7000; i++) {
+            step(&off, LEVELER_MODE_AUTO);
+        }
+    }
+    assert_int_equal(sv.latched_bits, 0);
+    set.chatter_max_per_min = 0;
+    for (unsigned i = 0; i < 1000; i++) {
+        step((i % 2) ? &off : &fill, LEVELER_MODE_AUTO);
+    }
+    assert_int_equal(sv.latched_bits, 0);
+    assert_false(sv.outputs_safe);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -241,6 +290,8 @@ int main(void)
         cmocka_unit_test_setup(test_stall_or_leak, setup),
         cmocka_unit_test_setup(test_stall_progress_resets_window, setup),
         cmocka_unit_test_setup(test_counters_saturate, setup),
+        cmocka_unit_test_setup(test_chatter_fault, setup),
+        cmocka_unit_test_setup(test_chatter_window_and_off, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

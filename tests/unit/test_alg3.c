@@ -1,0 +1,565 @@
+/*
+ * Algorithm 3 (alg3.h): every rule and phase transition on a fake clock,
+ * the minimum on/off times, learning (lines, gap, coast) with its rejections,
+ * and the fixed-point early-close rule and filter against a double reference.
+ */
+#include "test_support.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "leveler/alg3.h"
+#include "leveler/dwell.h"
+#include "leveler/regmap.h"
+
+#define LOWER_UM 396240
+#define UPPER_UM 401320
+#define TARGET_UM 398780
+#define P2_PA 700000
+
+static leveler_alg3 a;
+static leveler_settings set;
+static leveler_outputs out;
+static uint32_t now;
+static unsigned learnt_count;
+static leveler_control_state band_state;
+
+static int setup(void **state)
+{
+    (void)state;
+    leveler_settings_defaults(&set);
+    set.algorithm = LEVELER_ALGO_HYSTERESIS_AWARE;
+    now = 1000;
+    learnt_count = 0;
+    leveler_alg3_init(&a, now);
+    return 0;
+}
+
+/* One 10 ms tick; learnt settings applied as the app does (validated). */
+static void tick3(int32_t h, int32_t p2, int32_t p3)
+{
+    leveler_settings learnt;
+    bool changed = false;
+    now += 10;
+    band_state = leveler_alg3_step(&a, &set, h, p2, p2, p3, now, false, &out, &learnt, &changed);
+    leveler_alg3_driven(&a, &out, now);
+    if (changed && leveler_settings_check(&learnt) == LEVELER_REASON_NONE) {
+        set = learnt;
+        learnt_count++;
+    }
+}
+
+static void hold(int32_t h, unsigned ticks)
+{
+    for (unsigned i = 0; i < ticks; i++) {
+        tick3(h, P2_PA, 101325);
+    }
+}
+
+static bool all_off(void)
+{
+    return !out.compressor && !out.spring_valve && !out.vent_valve && !out.acc_valve;
+}
+
+static void test_rests_in_band(void **state)
+{
+    (void)state;
+    hold(TARGET_UM, 500);
+    assert_true(all_off());
+    assert_int_equal(a.phase, LEVELER_ALG3_IDLE);
+    assert_int_equal(band_state, LEVELER_STATE_IN_BAND);
+    assert_int_equal(a.moves, 0);
+}
+
+/* 0.004 in below the band: the area criterion (250 um*s) takes ~2.5 s. */
+static void test_small_departure_waits_for_persistence(void **state)
+{
+    (void)state;
+    hold(TARGET_UM, 100);
+    hold(LOWER_UM - 100, 200); /* 2 s */
+    assert_int_equal(a.phase, LEVELER_ALG3_IDLE);
+    assert_true(all_off());
+    hold(LOWER_UM - 100, 100); /* 3 s in all */
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    assert_true(out.compressor && out.spring_valve && !out.vent_valve);
+    assert_int_equal(band_state, LEVELER_STATE_CHARGING);
+}
+
+/* 1 in below, at rest (filter primed there): confirmed after the persistence time (50 ms). */
+static void test_large_departure_acts_at_once(void **state)
+{
+    (void)state;
+    unsigned ticks = 0;
+    while (a.phase == LEVELER_ALG3_IDLE && ticks < 100) {
+        hold(LOWER_UM - 25400, 1);
+        ticks++;
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    assert_in_range(ticks, 5, 7);
+}
+
+/* A fast fall from the top of the band (a load change) starts the fill before the band edge. */
+static void test_fast_fall_acts_inside_band(void **state)
+{
+    (void)state;
+    int32_t h = UPPER_UM - 100;
+    hold(h, 100);
+    while (a.phase == LEVELER_ALG3_IDLE && h > LOWER_UM - 10000) {
+        h -= 254; /* 1 in/s */
+        hold(h, 1);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    assert_true(h > LOWER_UM);
+}
+
+/* A departure above the band vents; the accumulator valve stays shut without one. */
+static void test_departure_above_vents(void **state)
+{
+    (void)state;
+    hold(TARGET_UM, 100);
+    hold(UPPER_UM + 5000, 20);
+    assert_int_equal(a.phase, LEVELER_ALG3_VENTING);
+    assert_true(!out.compressor && out.spring_valve && out.vent_valve && !out.acc_valve);
+    assert_int_equal(band_state, LEVELER_STATE_DISCHARGING);
+}
+
+/* Sensor noise of +-8 counts (+-616 um) 1000 um inside the band: 10 minutes, no action. */
+static void test_noise_never_confirms(void **state)
+{
+    (void)state;
+    uint32_t s = 12345u;
+    unsigned changes = 0;
+    uint8_t last = 0;
+    for (unsigned i = 0; i < 60000; i++) {
+        s = s * 1103515245u + 12345u;
+        int32_t noise = (int32_t)((s >> 16) % 1233u) - 616;
+        tick3(LOWER_UM + 1000 + noise, P2_PA, 101325);
+        uint8_t bits = leveler_outputs_bits(&out);
+        changes += bits != last;
+        last = bits;
+    }
+    assert_int_equal(changes, 0);
+    assert_int_equal(a.moves, 0);
+}
+
+/* A platform still coasting back towards the band when a settle times out is left alone. */
+static void test_returning_platform_left_alone(void **state)
+{
+    (void)state;
+    set.alg3_settle_ms = 500;
+    a.phase = LEVELER_ALG3_SETTLING;
+    a.phase_start_ms = now;
+    int32_t h = LOWER_UM - 6000;
+    for (unsigned i = 0; i < 120 && h < LOWER_UM; i++) {
+        h += 50; /* 5 mm/s up: predicted rest (+ 4.5 mm) inside the band */
+        hold(h, 1);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_IDLE);
+    assert_int_equal(a.moves, 0);
+}
+
+/* A climb at 5 mm/s closes early (rate prediction) and settles; then idle again. */
+static void test_fill_closes_early_then_settles(void **state)
+{
+    (void)state;
+    int32_t h = LOWER_UM - 5000;
+    hold(h, 100);
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    while (a.phase == LEVELER_ALG3_FILLING && h < UPPER_UM) {
+        h += 50;
+        hold(h, 1);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    /* closed when h + rate * 0.9 s * 5/4 reached the target: about 5.6 mm short of it */
+    assert_in_range(h, TARGET_UM - 6500, TARGET_UM - 4500);
+    for (unsigned i = 0; i < 60; i++) { /* coasts on towards the target */
+        h += (TARGET_UM - h) / 20;
+        hold(h, 1);
+        assert_true(all_off());
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    hold(h, 150); /* 1 s at rest */
+    assert_int_equal(a.phase, LEVELER_ALG3_IDLE);
+    assert_int_equal(a.moves, 1);
+}
+
+/* A platform that does not come to rest leaves settling after alg3_settle_ms. */
+static void test_settle_times_out(void **state)
+{
+    (void)state;
+    int32_t h = TARGET_UM - 8000;
+    hold(h, 100);
+    while (a.phase == LEVELER_ALG3_FILLING) {
+        h += 100;
+        hold(h, 1);
+    }
+    uint32_t closed = now;
+    while (a.phase == LEVELER_ALG3_SETTLING && now - closed < 10000) {
+        h += 20; /* a 2 mm/s creep: never still */
+        hold(h, 1);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_IDLE);
+    assert_in_range(now - closed, set.alg3_settle_ms, set.alg3_settle_ms + 20);
+}
+
+/* A vent closes on the down line: P2 far enough under the learnt line coasts to the target. */
+static void test_vent_closes_on_line(void **state)
+{
+    (void)state;
+    set.alg3_down_pa = 600000;
+    a.watch.lines_valid = true;
+    int32_t h = UPPER_UM + 2540;
+    hold(h, 100);
+    assert_int_equal(a.phase, LEVELER_ALG3_VENTING);
+    /* excess needed: (h - target) * k_down / 1000 / (5/4) under the line at h */
+    int32_t line = leveler_alg3_line_estimate(&a, &set, false, h);
+    assert_int_equal(line, 600000 + (int32_t)lround((h - TARGET_UM) / 1000.0 * set.alg3_line_slope_pa_per_mm));
+    int32_t p2 = line;
+    while (a.phase == LEVELER_ALG3_VENTING && p2 > 200000) {
+        p2 -= 100;
+        tick3(h, p2, 101325);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    double need = (h - TARGET_UM) / 1000.0 * set.alg3_coast_k_down_pa_per_mm * 4.0 / 5.0;
+    assert_in_range(line - p2, (int32_t)need - 200, (int32_t)need + 200);
+}
+
+/* held (safe state, or not in auto): outputs off, back to idle. */
+static void test_held_restarts_idle(void **state)
+{
+    (void)state;
+    hold(LOWER_UM - 25400, 20);
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    leveler_settings learnt;
+    bool changed;
+    leveler_alg3_step(&a, &set, LOWER_UM - 25400, P2_PA, P2_PA, 101325, now + 10, true, &out, &learnt, &changed);
+    assert_true(all_off());
+    assert_int_equal(a.phase, LEVELER_ALG3_IDLE);
+}
+
+/* Minimum on and off times hold back early switches, and only those. */
+static void test_dwell(void **state)
+{
+    (void)state;
+    leveler_dwell d;
+    leveler_dwell_init(&d, 0, UINT16_MAX);
+    leveler_outputs req = {true, true, false, false};
+    leveler_dwell_apply(&d, 300, 1000, 10, &req); /* free at start */
+    assert_true(req.compressor && req.spring_valve);
+    leveler_dwell_note(&d, &req, 10);
+    req = (leveler_outputs){false, false, false, false};
+    leveler_dwell_apply(&d, 300, 1000, 300, &req); /* on for 290 ms < 300 */
+    assert_true(req.compressor && req.spring_valve);
+    req = (leveler_outputs){false, true, false, false};
+    leveler_dwell_apply(&d, 300, 1000, 310, &req); /* 300 ms: may go off */
+    assert_true(!req.compressor && req.spring_valve);
+    leveler_dwell_note(&d, &req, 310);
+    req = (leveler_outputs){true, true, true, false};
+    leveler_dwell_apply(&d, 300, 1000, 1300, &req); /* off 990 ms: compressor held off; vent never used: free */
+    assert_true(!req.compressor && req.spring_valve && req.vent_valve);
+    req = (leveler_outputs){true, true, false, false};
+    leveler_dwell_apply(&d, 300, 1000, 1310, &req);
+    assert_true(req.compressor);
+}
+
+/* The controller obeys the dwell: a fill closed by the target cannot reopen within min_off. */
+static void test_min_off_between_moves(void **state)
+{
+    (void)state;
+    set.alg3_settle_ms = 100;
+    set.alg3_min_off_ms = 5000;
+    hold(LOWER_UM - 25400, 20);
+    assert_true(out.spring_valve);
+    hold(TARGET_UM, 1); /* there: closes */
+    assert_false(out.spring_valve);
+    uint32_t closed = now;
+    hold(LOWER_UM - 25400, 200); /* a new departure at once */
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    assert_false(out.spring_valve);
+    while (!out.spring_valve) {
+        hold(LOWER_UM - 25400, 1);
+    }
+    assert_in_range(now - closed, 5000, 5010);
+}
+
+/* Accumulator: recharged at rest with a hysteresis, opened in a fill while it
+ * holds more than the spring, filled from the spring while venting. */
+static void test_accumulator_duties(void **state)
+{
+    (void)state;
+    set.alg3_accumulator = 1;
+    int32_t max = set.acc_charge_max_pa;
+    for (unsigned i = 0; i < 150; i++) {
+        tick3(TARGET_UM, P2_PA, max - 20000);
+    }
+    assert_true(out.compressor && out.acc_valve && !out.spring_valve);
+    for (unsigned i = 0; i < 150; i++) {
+        tick3(TARGET_UM, P2_PA, max);
+    }
+    assert_true(!out.compressor && !out.acc_valve);
+    for (unsigned i = 0; i < 150; i++) { /* 1 psi down: within the hysteresis, no restart */
+        tick3(TARGET_UM, P2_PA, max - 6895);
+    }
+    assert_true(!out.compressor);
+    for (unsigned i = 0; i < 20; i++) {
+        tick3(LOWER_UM - 25400, P2_PA, max);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    assert_true(out.compressor && out.spring_valve && out.acc_valve);
+    leveler_alg3_init(&a, now);
+    for (unsigned i = 0; i < 150; i++) {
+        tick3(UPPER_UM + 25400, P2_PA, P2_PA - 100000);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_VENTING);
+    assert_true(out.vent_valve && out.acc_valve && !out.compressor);
+    for (unsigned i = 0; i < 150; i++) { /* accumulator above the spring: kept shut */
+        tick3(UPPER_UM + 25400, P2_PA, P2_PA + 100000);
+    }
+    assert_false(out.acc_valve);
+}
+
+/* Drive a fill: stuck at h0 while P2 rises 100 Pa per tick, break-away at
+ * p_break, then a climb at 10 mm/s with P2 steady. Returns the break-away height. */
+static int32_t stuck_then_climb(int32_t h0, int32_t p_start, int32_t p_break, unsigned climb_ticks)
+{
+    int32_t p = p_start;
+    hold(h0, 1);
+    while (p < p_break) {
+        p += 100;
+        tick3(h0, p, 101325);
+    }
+    int32_t h = h0;
+    for (unsigned i = 0; i < climb_ticks && a.phase == LEVELER_ALG3_FILLING; i++) {
+        h += 100;
+        tick3(h, p, 101325);
+    }
+    return h0;
+}
+
+/* The break-away point is learnt as the up line at the target, within the lag
+ * of the rate window (P2 rose 100 Pa per tick before it). */
+static void test_learns_up_line_at_breakaway(void **state)
+{
+    (void)state;
+    int32_t h0 = LOWER_UM - 20000;
+    stuck_then_climb(h0, 690000, 715000, 40);
+    assert_true(a.watch.line_fresh);
+    int32_t expect = 715000 + (int32_t)lround((TARGET_UM - h0) / 1000.0 * set.alg3_line_slope_pa_per_mm);
+    assert_in_range(set.alg3_up_pa, expect - 3500, expect + 100);
+    assert_int_equal(set.alg3_down_pa, 0);
+}
+
+/* Implausible points are refused: P2 under LINE_MIN_PA, or far from the target. */
+static void test_rejects_implausible_line_points(void **state)
+{
+    (void)state;
+    stuck_then_climb(LOWER_UM - 20000, 100000, 110000, 40);
+    assert_int_equal(set.alg3_up_pa, 0);
+    assert_false(a.watch.line_fresh);
+    setup(NULL);
+    stuck_then_climb(TARGET_UM - 60000, 690000, 715000, 40);
+    assert_int_equal(set.alg3_up_pa, 0);
+}
+
+/* Learning off: the same motion changes no setting. */
+static void test_learning_off(void **state)
+{
+    (void)state;
+    set.alg3_learn = 0;
+    leveler_settings before = set;
+    stuck_then_climb(LOWER_UM - 20000, 690000, 715000, 400);
+    hold(TARGET_UM, 300);
+    assert_memory_equal(&before, &set, sizeof(set));
+    assert_int_equal(learnt_count, 0);
+}
+
+/* A new up point that crosses the known down line means another load: the down line is forgotten. */
+static void test_load_change_forgets_other_line(void **state)
+{
+    (void)state;
+    set.alg3_down_pa = 720000;
+    stuck_then_climb(LOWER_UM - 20000, 690000, 715000, 40);
+    assert_true(set.alg3_up_pa > 0 && set.alg3_up_pa < 720000);
+    assert_int_equal(set.alg3_down_pa, 0);
+}
+
+/* Coast learning: time = travel / rate at the close, stiffness = excess / travel;
+ * a coast 3x off the learnt stiffness is rejected. */
+static void test_learns_coast(void **state)
+{
+    (void)state;
+    hold(TARGET_UM - 10000, 1);
+    a.rate_um_s = 20000;
+    leveler_alg3_note_close(&a, 1, 710000, 700000); /* 10 kPa over the line at 20 mm/s */
+    for (unsigned i = 0; i < 200; i++) { /* coasted 10.01 mm (the filter alone: no phase logic) */
+        leveler_alg3_filter(&a, TARGET_UM + 10);
+    }
+    leveler_settings learnt = set;
+    bool changed = false;
+    a.watch.moved = true;
+    leveler_alg3_learn_coast(&a, &set, &learnt, &changed);
+    assert_true(changed);
+    /* seen: tau = 10.01 mm / 20 mm/s = 500 ms, k = 10000 Pa / 10.01 mm = 999 Pa/mm; halfway from the defaults */
+    assert_in_range(learnt.alg3_coast_up_ms, (900 + 500) / 2 - 2, (900 + 500) / 2 + 2);
+    assert_in_range(learnt.alg3_coast_k_up_pa_per_mm, (915 + 999) / 2 - 2, (915 + 999) / 2 + 2);
+    /* 40 kPa over the line for the same 10 mm: 4x stiffer than learnt, rejected */
+    leveler_alg3_note_close(&a, 1, 740000, 700000);
+    a.watch.close_valid = false; /* no rate either */
+    a.watch.close_height_um = TARGET_UM - 10000;
+    changed = false;
+    learnt = set;
+    leveler_alg3_learn_coast(&a, &set, &learnt, &changed);
+    assert_false(changed);
+}
+
+/* The gap: from where a fall stopped (down line) to the next break-away upwards. */
+static void test_learns_gap_and_estimates_line_before_breakaway(void **state)
+{
+    (void)state;
+    int32_t h0 = LOWER_UM - 20000;
+    a.watch.end_valid = true;
+    a.watch.end_dir = -1;
+    a.watch.end_height_um = h0;
+    a.watch.end_p_spring_pa = 650000;
+    /* before any break-away the up line is estimated as the stop plus the gap */
+    hold(h0, 1);
+    assert_int_equal(leveler_alg3_line_estimate(&a, &set, true, h0), 650000 + set.alg3_gap_pa);
+    a.watch.end_valid = true; /* hold() may have changed nothing, but be explicit */
+    set.alg3_gap_pa = 100000; /* a too-wide gap: no early close before the break-away */
+    stuck_then_climb(h0, 700000, 716000, 40);
+    /* seen about 716000 - 650000 = 66000 (within the P2 lag), halfway from 100000 */
+    assert_in_range(set.alg3_gap_pa, (100000 + 62500) / 2, (100000 + 66100) / 2);
+}
+
+/* A close on an estimate after which nothing moved forgets the estimate. */
+static void test_failed_estimate_forgotten(void **state)
+{
+    (void)state;
+    int32_t h0 = LOWER_UM - 5000;
+    a.watch.end_valid = true;
+    a.watch.end_dir = 1;
+    a.watch.end_height_um = h0;
+    a.watch.end_p_spring_pa = 650000;
+    hold(h0, 1);
+    for (unsigned i = 0; i < 100 && a.phase != LEVELER_ALG3_SETTLING; i++) {
+        tick3(h0, 660000, 101325); /* 10 kPa over the estimate: coasts far, closes at once */
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    hold(h0, 200); /* nothing moves */
+    assert_false(a.watch.end_valid);
+    assert_int_equal(leveler_alg3_line_estimate(&a, &set, true, h0), 0);
+}
+
+/* Double reference of the early-close rule over random states: the fixed-point
+ * rule agrees except within 2 um (its rounding) of the target. */
+static void test_close_rule_against_double(void **state)
+{
+    (void)state;
+    uint32_t s = 99u;
+#define RND(lo, hi) ((s = s * 1664525u + 1013904223u), (lo) + (int32_t)((s >> 8) % (uint32_t)((hi) - (lo) + 1)))
+    unsigned near = 0;
+    for (unsigned i = 0; i < 200000; i++) {
+        set.alg3_coast_up_ms = (uint16_t)RND(20, 5000);
+        set.alg3_coast_down_ms = (uint16_t)RND(20, 5000);
+        set.alg3_coast_k_up_pa_per_mm = RND(50, 20000);
+        set.alg3_coast_k_down_pa_per_mm = RND(50, 20000);
+        bool up = RND(0, 1) != 0;
+        int32_t h = RND(LOWER_UM - 60000, UPPER_UM + 60000);
+        int32_t rate = RND(-80000, 80000);
+        int32_t p2 = RND(300000, 900000);
+        int32_t line = RND(0, 3) == 0 ? 0 : RND(300000, 900000);
+        bool got = leveler_alg3_close_now(&set, up, h, rate, p2, line);
+        double along = up ? rate : -rate;
+        double coast = up ? set.alg3_coast_up_ms : set.alg3_coast_down_ms;
+        double k = up ? set.alg3_coast_k_up_pa_per_mm : set.alg3_coast_k_down_pa_per_mm;
+        double by_rate = along > LEVELER_ALG3_STILL_UM_S ? h + 1.25 * rate * coast / 1000.0 : h;
+        double excess = up ? (double)p2 - line : (double)line - p2;
+        double by_line = (line != 0 && excess > 0) ? h + (up ? 1.0 : -1.0) * 1.25 * excess * 1000.0 / k : h;
+        bool want = up ? (h >= TARGET_UM || h > UPPER_UM || by_rate >= TARGET_UM || by_line >= TARGET_UM)
+                       : (h <= TARGET_UM || h < LOWER_UM || by_rate <= TARGET_UM || by_line <= TARGET_UM);
+        if (got != want) {
+            bool at_threshold = fabs(by_rate - TARGET_UM) <= 2.0 || fabs(by_line - TARGET_UM) <= 2.0;
+            if (!at_threshold) {
+                fail_msg("disagree: up %d h %d rate %d p2 %d line %d: got %d want %d (rate %.2f line %.2f)", up, h,
+                         rate, p2, line, got, want, by_rate, by_line);
+            }
+            near++;
+        }
+    }
+    assert_true(near < 50); /* disagreements are rare, and only at the threshold */
+#undef RND
+}
+
+/* Double reference of the height filter and rate over a random walk in the
+ * full sensor range: height within 1 um, rate within 6 um/s. */
+static void test_filter_against_double(void **state)
+{
+    (void)state;
+    uint32_t s = 7u;
+    double y = 0.0, ring[LEVELER_ALG3_RATE_TICKS];
+    int32_t x = 500000;
+    for (unsigned i = 0; i < 100000; i++) {
+        s = s * 1664525u + 1013904223u;
+        x += (int32_t)((s >> 8) % 20001u) - 10000;
+        x = x < 0 ? 0 : (x > 1000000 ? 1000000 : x);
+        leveler_alg3_filter(&a, x);
+        if (i == 0) {
+            y = x;
+            for (unsigned k = 0; k < LEVELER_ALG3_RATE_TICKS; k++) {
+                ring[k] = y;
+            }
+            continue;
+        }
+        y += (x - y) / LEVELER_ALG3_FILTER_DIV;
+        double old = ring[i % LEVELER_ALG3_RATE_TICKS];
+        ring[i % LEVELER_ALG3_RATE_TICKS] = y;
+        double rate = (y - old) * 1000.0 / (LEVELER_ALG3_RATE_TICKS * 10.0);
+        assert_true(fabs(leveler_alg3_height_um(&a) - y) <= 1.0);
+        if (i > LEVELER_ALG3_RATE_TICKS) {
+            assert_true(fabs(a.rate_um_s - rate) <= 6.0);
+        }
+    }
+}
+
+/* Saturation at the ends of the int32 range: no wrap. */
+static void test_saturation(void **state)
+{
+    (void)state;
+    assert_int_equal(leveler_alg3_predict_um(INT32_MAX - 10, 1000000, 5000), INT32_MAX);
+    assert_int_equal(leveler_alg3_predict_um(INT32_MIN + 10, -1000000, 5000), INT32_MIN);
+    set.band_lower_um = -1000000;
+    set.band_upper_um = 1000000;
+    set.alg3_target_permille = 800;
+    assert_int_equal(leveler_alg3_target_um(&set), 600000);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test_setup(test_rests_in_band, setup),
+        cmocka_unit_test_setup(test_small_departure_waits_for_persistence, setup),
+        cmocka_unit_test_setup(test_large_departure_acts_at_once, setup),
+        cmocka_unit_test_setup(test_fast_fall_acts_inside_band, setup),
+        cmocka_unit_test_setup(test_departure_above_vents, setup),
+        cmocka_unit_test_setup(test_noise_never_confirms, setup),
+        cmocka_unit_test_setup(test_returning_platform_left_alone, setup),
+        cmocka_unit_test_setup(test_fill_closes_early_then_settles, setup),
+        cmocka_unit_test_setup(test_settle_times_out, setup),
+        cmocka_unit_test_setup(test_vent_closes_on_line, setup),
+        cmocka_unit_test_setup(test_held_restarts_idle, setup),
+        cmocka_unit_test_setup(test_dwell, setup),
+        cmocka_unit_test_setup(test_min_off_between_moves, setup),
+        cmocka_unit_test_setup(test_accumulator_duties, setup),
+        cmocka_unit_test_setup(test_learns_up_line_at_breakaway, setup),
+        cmocka_unit_test_setup(test_rejects_implausible_line_points, setup),
+        cmocka_unit_test_setup(test_learning_off, setup),
+        cmocka_unit_test_setup(test_load_change_forgets_other_line, setup),
+        cmocka_unit_test_setup(test_learns_coast, setup),
+        cmocka_unit_test_setup(test_learns_gap_and_estimates_line_before_breakaway, setup),
+        cmocka_unit_test_setup(test_failed_estimate_forgotten, setup),
+        cmocka_unit_test_setup(test_close_rule_against_double, setup),
+        cmocka_unit_test_setup(test_filter_against_double, setup),
+        cmocka_unit_test_setup(test_saturation, setup),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
