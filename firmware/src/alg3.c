@@ -36,6 +36,12 @@ int32_t leveler_alg3_predict_um(int32_t height_um, int32_t rate_um_s, uint16_t c
     return leveler_sat_i32((int64_t)height_um + leveler_div_round_i64((int64_t)rate_um_s * (int64_t)coast_ms, 1000));
 }
 
+int32_t leveler_alg3_prediction_rate(const leveler_alg3 *a)
+{
+    bool fast = a->rate_fast_um_s >= LEVELER_ALG3_FAST_UM_S || a->rate_fast_um_s <= -LEVELER_ALG3_FAST_UM_S;
+    return fast ? a->rate_fast_um_s : a->rate_um_s;
+}
+
 int32_t leveler_alg3_height_um(const leveler_alg3 *a)
 {
     return (int32_t)leveler_div_round_i64(a->height_q, LEVELER_ALG3_Q);
@@ -52,6 +58,7 @@ void leveler_alg3_filter(leveler_alg3 *a, int32_t height_um)
         }
         a->ring_head = 0;
         a->rate_um_s = 0;
+        a->rate_fast_um_s = 0;
         return;
     }
     /* Truncating division: the state moves by (x - state)/4 rounded toward zero,
@@ -60,32 +67,49 @@ void leveler_alg3_filter(leveler_alg3 *a, int32_t height_um)
     a->height_q = leveler_sat_i32((int64_t)a->height_q + (x_q - (int64_t)a->height_q) / LEVELER_ALG3_FILTER_DIV);
     int32_t h = leveler_alg3_height_um(a);
     int32_t oldest = a->ring_um[a->ring_head]; /* LEVELER_ALG3_RATE_TICKS ticks ago */
+    int32_t recent = a->ring_um[(a->ring_head + LEVELER_ALG3_RATE_TICKS - LEVELER_ALG3_FAST_TICKS) %
+                                LEVELER_ALG3_RATE_TICKS];
     a->ring_um[a->ring_head] = h;
     a->ring_head = (uint8_t)((a->ring_head + 1u) % LEVELER_ALG3_RATE_TICKS);
     a->rate_um_s = leveler_sat_i32(leveler_div_round_i64(((int64_t)h - (int64_t)oldest) * 1000,
                                                          (int64_t)LEVELER_ALG3_RATE_TICKS * LEVELER_TICK_MS));
+    a->rate_fast_um_s = leveler_sat_i32(leveler_div_round_i64(((int64_t)h - (int64_t)recent) * 1000,
+                                                              (int64_t)LEVELER_ALG3_FAST_TICKS * LEVELER_TICK_MS));
 }
 
-/* Where the filtered height is against the band, and for how long and how far. */
+/* A one-sided cumulative sum of the distance outside a band edge: it grows
+ * while the filtered height is outside and shrinks while it is inside, so a
+ * platform resting a hair outside is found in time through any noise, and
+ * noise around a height inside the band never adds up. The side changes only
+ * after its sum is back to 0. The sum is capped at the confirmation level (a
+ * long excursion must not take as long to forget) and cleared when a move
+ * starts. dt is clamped to a minute: no overflow. */
 static void track_departure(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms, uint32_t dt_ms)
 {
-    int8_t dir = 0;
-    int64_t excess = 0;
-    if (h < set->band_lower_um) {
-        dir = -1;
-        excess = (int64_t)set->band_lower_um - h;
-    } else if (h > set->band_upper_um) {
-        dir = 1;
-        excess = (int64_t)h - set->band_upper_um;
+    int64_t below = (int64_t)set->band_lower_um - h;
+    int64_t above = (int64_t)h - set->band_upper_um;
+    int64_t dt = dt_ms > 60000u ? 60000 : (int64_t)dt_ms;
+    if (a->out_dir != 0) {
+        int64_t cap = (int64_t)set->alg3_confirm_um_s * 1000;
+        int64_t d = a->out_dir < 0 ? below : above;
+        a->out_area_um_ms += d * dt;
+        if (a->out_area_um_ms > cap) {
+            a->out_area_um_ms = cap;
+        }
+        if (a->out_area_um_ms <= 0 && d <= 0) {
+            a->out_dir = 0;
+        }
+        if (a->out_area_um_ms < 0) {
+            a->out_area_um_ms = 0;
+        }
     }
-    if (dir != a->out_dir) {
-        a->out_dir = dir;
+    if (a->out_dir == 0 && (below > 0 || above > 0)) {
+        a->out_dir = below > 0 ? -1 : 1;
         a->out_since_ms = now_ms;
-        a->out_area_um_ms = 0;
-        return;
-    }
-    if (dir != 0 && a->out_area_um_ms < INT64_MAX / 2) { /* excess <= 2^32, dt <= 2^32: no overflow */
-        a->out_area_um_ms += excess * (int64_t)dt_ms;
+        a->out_area_um_ms = (below > 0 ? below : above) * dt;
+        if (a->out_area_um_ms > (int64_t)set->alg3_confirm_um_s * 1000) {
+            a->out_area_um_ms = (int64_t)set->alg3_confirm_um_s * 1000;
+        }
     }
 }
 
@@ -108,13 +132,20 @@ static int8_t side(const leveler_settings *set, int32_t h)
 /* Confirmed: long and far enough outside, or a load change under way (a fast
  * move whose predicted rest lies outside). Acted on only while the predicted
  * rest lies outside on that side: a platform coasting back is left alone. */
-static int8_t departure(const leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms)
+static int8_t fast_departure(const leveler_alg3 *a, const leveler_settings *set, int32_t h)
 {
     int8_t rest_side = side(set, rate_prediction(a, set, h));
     bool fast = a->rate_um_s >= LEVELER_ALG3_FAST_UM_S || a->rate_um_s <= -LEVELER_ALG3_FAST_UM_S;
-    if (fast && rest_side != 0 && (rest_side > 0) == (a->rate_um_s > 0)) {
-        return rest_side;
+    return (fast && rest_side != 0 && (rest_side > 0) == (a->rate_um_s > 0)) ? rest_side : 0;
+}
+
+static int8_t departure(const leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms)
+{
+    int8_t fast = fast_departure(a, set, h);
+    if (fast != 0) {
+        return fast;
     }
+    int8_t rest_side = side(set, rate_prediction(a, set, h));
     bool confirmed = a->out_dir != 0 && now_ms - a->out_since_ms >= set->alg3_persist_ms &&
                      a->out_area_um_ms >= (int64_t)set->alg3_confirm_um_s * 1000;
     return (confirmed && rest_side == a->out_dir) ? a->out_dir : 0;
@@ -126,16 +157,30 @@ static void enter(leveler_alg3 *a, uint8_t phase, uint32_t now_ms)
     a->phase_start_ms = now_ms;
 }
 
-static void idle(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms)
+/* dir: -1 fill, +1 vent. off_um: how far outside the band (a fast move: far). */
+static void start_move(leveler_alg3 *a, int8_t dir, int64_t off_um, uint32_t now_ms)
 {
-    int8_t dir = departure(a, set, h, now_ms);
-    if (dir == 0) {
-        return;
-    }
+    bool still = a->rate_um_s < LEVELER_ALG3_MOVING_UM_S && a->rate_um_s > -LEVELER_ALG3_MOVING_UM_S;
+    bool fine = off_um < LEVELER_ALG3_FINE_UM && still;
+    a->use_acc = off_um >= LEVELER_ALG3_ACC_MIN_UM;
+    a->out_dir = 0; /* the departure is being dealt with: a new one must be seen afresh */
+    a->out_area_um_ms = 0;
+    a->fine = fine;
+    a->bursting = false;
     enter(a, dir < 0 ? LEVELER_ALG3_FILLING : LEVELER_ALG3_VENTING, now_ms);
     a->watch.line_fresh = false;
     a->watch.moved = false;
     a->moves = leveler_sat_inc_u16(a->moves);
+}
+
+static void idle(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms)
+{
+    int8_t dir = departure(a, set, h, now_ms);
+    if (dir != 0) {
+        bool fast = fast_departure(a, set, h) != 0;
+        int64_t off = dir < 0 ? (int64_t)set->band_lower_um - h : (int64_t)h - set->band_upper_um;
+        start_move(a, dir, fast ? INT32_MAX : off, now_ms);
+    }
 }
 
 /* Rest height if the valves closed now, from the pressure: the excess over the
@@ -172,22 +217,47 @@ bool leveler_alg3_close_now(const leveler_settings *set, bool up, int32_t h, int
     return h <= target || h < set->band_lower_um || by_rate <= target || by_line <= target;
 }
 
-/* Filling or venting: close when leveler_alg3_close_now() says so. */
+/* A fine move: P2 goes on towards the line in one go while it is farther
+ * than the burst zone; then one burst, and the settle that follows shows
+ * whether it moved. */
+static bool burst_done(leveler_alg3 *a, bool up, int32_t p_spring_pa, int32_t line, uint32_t now_ms)
+{
+    if (!a->fine) {
+        return false;
+    }
+    int64_t short_of_line = up ? (int64_t)line - p_spring_pa : (int64_t)p_spring_pa - line;
+    if (!a->bursting && (line == 0 || short_of_line <= LEVELER_ALG3_BURST_ZONE_PA)) {
+        a->bursting = true;
+        a->burst_start_ms = now_ms;
+    }
+    return a->bursting && now_ms - a->burst_start_ms >= LEVELER_ALG3_BURST_MS;
+}
+
+/* Filling or venting: close when leveler_alg3_close_now() says so, or a burst is done. */
 static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int32_t p_spring_pa, uint32_t now_ms)
 {
     bool up = a->phase == LEVELER_ALG3_FILLING;
     int32_t line = leveler_alg3_line_estimate(a, set, up, h);
-    if (leveler_alg3_close_now(set, up, h, a->rate_um_s, p_spring_pa, line)) {
+    bool burst = burst_done(a, up, p_spring_pa, line, now_ms);
+    if (leveler_alg3_close_now(set, up, h, leveler_alg3_prediction_rate(a), p_spring_pa, line) || burst) {
         leveler_alg3_note_close(a, up ? 1 : -1, p_spring_pa, line);
         enter(a, LEVELER_ALG3_SETTLING, now_ms);
     }
 }
 
 /* Valves closed until the platform is at rest (or alg3_settle_ms); then the
- * coast is learnt from. */
-static void settling(leveler_alg3 *a, const leveler_settings *set, uint32_t now_ms,
+ * coast is learnt from. A fast motion against the move just closed is a load
+ * change and is acted on at once. */
+static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms,
                      leveler_settings *learnt, bool *changed)
 {
+    int8_t fast = fast_departure(a, set, h);
+    if (fast != 0 && fast == -a->watch.close_dir) {
+        a->watch.close_valid = false;
+        a->watch.close_dir = 0;
+        start_move(a, fast, INT32_MAX, now_ms);
+        return;
+    }
     uint32_t in_phase = now_ms - a->phase_start_ms;
     bool at_rest = a->watch.still_ms >= LEVELER_ALG3_SETTLE_REST_MS;
     if (at_rest || in_phase >= set->alg3_settle_ms) {
@@ -209,7 +279,7 @@ static void phase_outputs(leveler_alg3 *a, const leveler_settings *set, int32_t 
     if (a->phase == LEVELER_ALG3_FILLING) {
         out->compressor = true;
         out->spring_valve = true;
-        out->acc_valve = acc && (int64_t)p_acc_pa > (int64_t)p_spring_pa + LEVELER_ALG3_ACC_HELP_PA;
+        out->acc_valve = acc && a->use_acc && (int64_t)p_acc_pa > (int64_t)p_spring_pa + LEVELER_ALG3_ACC_HELP_PA;
         return;
     }
     if (a->phase == LEVELER_ALG3_VENTING) {
@@ -260,7 +330,7 @@ leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings 
     if (a->phase == LEVELER_ALG3_IDLE) {
         idle(a, set, h, now_ms);
     } else if (a->phase == LEVELER_ALG3_SETTLING) {
-        settling(a, set, now_ms, learnt, learnt_changed);
+        settling(a, set, h, now_ms, learnt, learnt_changed);
     } else {
         moving(a, set, h, p_spring_pa, now_ms);
     }

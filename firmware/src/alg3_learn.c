@@ -24,11 +24,12 @@ static void begin(const leveler_settings *set, leveler_settings *learnt, bool *c
 
 void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir, int32_t p_spring_pa, int32_t line_pa)
 {
-    int32_t along = dir > 0 ? a->rate_um_s : -a->rate_um_s;
+    int32_t rate = leveler_alg3_prediction_rate(a);
+    int32_t along = dir > 0 ? rate : -rate;
     a->watch.close_valid = along >= LEVELER_ALG3_COAST_MIN_RATE_UM_S;
     a->watch.close_dir = dir;
     a->watch.close_height_um = leveler_alg3_height_um(a);
-    a->watch.close_rate_um_s = a->rate_um_s;
+    a->watch.close_rate_um_s = rate;
     a->watch.close_p_spring_pa = p_spring_pa;
     a->watch.close_line_pa = line_pa;
 }
@@ -78,7 +79,8 @@ void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leve
 {
     leveler_alg3_watch *w = &a->watch;
     int64_t travel_um = (int64_t)leveler_alg3_height_um(a) - w->close_height_um;
-    if (!w->moved && !w->line_fresh) {
+    bool moved = w->moved || travel_um >= LEVELER_ALG3_MOVED_UM || travel_um <= -LEVELER_ALG3_MOVED_UM;
+    if (!moved && !w->line_fresh) {
         /* closed on an estimate and nothing moved: the line lies beyond it;
          * fill or vent on until the platform breaks away */
         w->end_valid = false;

@@ -44,7 +44,8 @@ static void thesis(ctlbench_scenario *sc, const char *config, double base_lbf)
     sc->end_s = THESIS_END_S;
 }
 
-/* +200 lb at 5 s, then rest_s of rest scored after REST_SETTLE_S. */
+/* The thesis steps (+200 lb at 5 s, removed at 35 s), then rest_s of rest
+ * scored from REST_SETTLE_S after the removal (the issue's hunting case). */
 static void rest(ctlbench_scenario *sc, const char *config, double noise, double rest_s)
 {
     memset(sc, 0, sizeof *sc);
@@ -56,8 +57,9 @@ static void rest(ctlbench_scenario *sc, const char *config, double noise, double
     sc->noise_seed = 100u + (uint32_t)noise;
     sc->steps[0] = (sim_load_step){0.0, LOAD_900_N};
     sc->steps[1] = (sim_load_step){5.0, LOAD_900_N + STEP_N};
-    sc->step_count = 2;
-    sc->rest_from_s = 5.0 + REST_SETTLE_S;
+    sc->steps[2] = (sim_load_step){35.0, LOAD_900_N};
+    sc->step_count = 3;
+    sc->rest_from_s = 35.0 + REST_SETTLE_S;
     sc->rest_to_s = sc->rest_from_s + rest_s;
     sc->end_s = sc->rest_to_s;
 }

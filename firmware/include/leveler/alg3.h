@@ -8,9 +8,10 @@
  *  - filters the height (first order, tau ~35 ms) and estimates its rate
  *    (difference over LEVELER_ALG3_RATE_TICKS ticks);
  *  - acts only on a confirmed departure: outside the band for alg3_persist_ms
- *    AND the distance outside integrated over time >= alg3_confirm_um_s
- *    (a 1 in load-step drop confirms within a tick or two, a 0.001 in creep
- *    only after minutes: noise never does);
+ *    AND the distance outside integrated over time (a cumulative sum that the
+ *    time inside the band draws back down) >= alg3_confirm_um_s: a 1 in
+ *    load-step drop confirms within a tick or two, a rest 0.001 in outside
+ *    after about 10 s whatever the noise, noise around a height inside never;
  *  - or on a fast move (a load change) whose predicted rest lies outside the
  *    band, before the band edge is even reached;
  *  - acts only when the predicted rest lies outside the band (a platform
@@ -25,6 +26,12 @@
  *    gap; so the earlier of the two predictions wins;
  *  - then waits with the valves closed until the platform is at rest
  *    (at most alg3_settle_ms) before it may act again;
+ *  - corrects a small departure (under LEVELER_ALG3_FINE_UM) without the
+ *    accumulator and, once P2 is within LEVELER_ALG3_BURST_ZONE_PA of the
+ *    line (or the line is unknown), in bursts of LEVELER_ALG3_BURST_MS with
+ *    a settle after each: a step of a hysteresis system cannot be smaller
+ *    than what the excess at the break-away carries, so the excess is built
+ *    up in small steps;
  *  - gives every output a minimum on and off time (dwell.h);
  *  - learns the coast times and the hysteresis lines from the rig's own
  *    motion (alg3_learn.c) and keeps them in the settings (flash);
@@ -54,6 +61,7 @@ typedef enum {
 } leveler_alg3_phase;
 
 #define LEVELER_ALG3_RATE_TICKS 32u       /* rate = filtered height difference over 320 ms */
+#define LEVELER_ALG3_FAST_TICKS 8u        /* the prediction's rate: over 80 ms */
 #define LEVELER_ALG3_FILTER_DIV 4         /* first-order filter gain 1/4 per 10 ms tick */
 #define LEVELER_ALG3_Q 16                 /* filter state in 1/16 um */
 #define LEVELER_ALG3_STILL_UM_S 1500      /* |rate| below this: not moving (0.06 in/s) */
@@ -68,6 +76,11 @@ typedef enum {
 #define LEVELER_ALG3_COAST_MAX_MS 5000
 #define LEVELER_ALG3_K_MIN_PA_PER_MM 50
 #define LEVELER_ALG3_K_MAX_PA_PER_MM 20000
+#define LEVELER_ALG3_FINE_UM 2540          /* a departure under 0.1 in is corrected in bursts */
+#define LEVELER_ALG3_BURST_MS 100u        /* one burst of a fine move */
+#define LEVELER_ALG3_ACC_MIN_UM 12700     /* the accumulator helps only departures beyond 0.5 in (or fast ones) */
+#define LEVELER_ALG3_BURST_ZONE_PA 3000   /* bursts start this close to the line (0.44 psi) */
+#define LEVELER_ALG3_MOVED_UM 500        /* a close followed by less travel than this (0.02 in) moved nothing */
 #define LEVELER_ALG3_K_FACTOR 3          /* a coast stiffness seen more than 3x off the learnt one is rejected */
 #define LEVELER_ALG3_FAST_UM_S 12000     /* a move this fast (0.47 in/s) heading out of the band is a load change */
 #define LEVELER_ALG3_SETTLE_REST_MS 1000u /* a settle ends after this long at rest */
@@ -103,14 +116,19 @@ typedef struct {
     int32_t ring_um[LEVELER_ALG3_RATE_TICKS];
     uint8_t ring_head;
     uint8_t ring_fill;
-    int32_t rate_um_s;
+    int32_t rate_um_s;        /* over the whole window: motion / rest, learning */
+    int32_t rate_fast_um_s;   /* over the last LEVELER_ALG3_FAST_TICKS: predictions (less lag) */
     uint8_t phase;            /* leveler_alg3_phase */
     uint32_t phase_start_ms;
     uint32_t last_ms;         /* previous step */
     int8_t out_dir;           /* -1 below the band, +1 above, 0 in */
     uint32_t out_since_ms;
-    int64_t out_area_um_ms;   /* distance outside the band integrated over time */
+    int64_t out_area_um_ms;   /* distance outside the band integrated over time (cumulative sum, >= 0) */
     bool recharging;          /* accumulator charge in progress */
+    bool fine;                /* the present move corrects a small departure: in bursts near the line */
+    bool use_acc;             /* the present fill may draw on the accumulator (a large or fast departure) */
+    bool bursting;            /* a burst of a fine move is under way since burst_start_ms */
+    uint32_t burst_start_ms;
     uint16_t moves;
     leveler_dwell dwell;
     leveler_alg3_watch watch;
@@ -139,6 +157,9 @@ int32_t leveler_alg3_target_um(const leveler_settings *set);
 /* Filter and rate (exposed for the double-reference test), and the filtered height (um). */
 void leveler_alg3_filter(leveler_alg3 *a, int32_t height_um);
 int32_t leveler_alg3_height_um(const leveler_alg3 *a);
+/* The rate the predictions use: over 80 ms when that is beyond LEVELER_ALG3_FAST_UM_S
+ * (a fast motion, where the long window lags), else over the whole window (noise). */
+int32_t leveler_alg3_prediction_rate(const leveler_alg3 *a);
 
 /* Learning (alg3_learn.c), only while settings.alg3_learn is on. Line points:
  * when the platform breaks away in a fill or a vent, P2 (half the rate window
