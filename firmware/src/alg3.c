@@ -162,14 +162,14 @@ static void start_move(leveler_alg3 *a, int8_t dir, int64_t off_um, uint32_t now
 {
     bool still = a->rate_um_s < LEVELER_ALG3_MOVING_UM_S && a->rate_um_s > -LEVELER_ALG3_MOVING_UM_S;
     bool fine = off_um < LEVELER_ALG3_FINE_UM && still;
-    a->use_acc = off_um >= LEVELER_ALG3_ACC_MIN_UM;
+    a->use_acc = off_um >= LEVELER_ALG3_ACC_MIN_UM || (a->retry && a->use_acc);
+    a->retry = false;
     a->out_dir = 0; /* the departure is being dealt with: a new one must be seen afresh */
     a->out_area_um_ms = 0;
     a->fine = fine;
     a->bursting = false;
     enter(a, dir < 0 ? LEVELER_ALG3_FILLING : LEVELER_ALG3_VENTING, now_ms);
     a->watch.line_fresh = false;
-    a->watch.moved = false;
     a->moves = leveler_sat_inc_u16(a->moves);
 }
 

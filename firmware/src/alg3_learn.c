@@ -79,12 +79,13 @@ void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leve
 {
     leveler_alg3_watch *w = &a->watch;
     int64_t travel_um = (int64_t)leveler_alg3_height_um(a) - w->close_height_um;
-    bool moved = w->moved || travel_um >= LEVELER_ALG3_MOVED_UM || travel_um <= -LEVELER_ALG3_MOVED_UM;
-    if (!moved && !w->line_fresh) {
+    int64_t along_um = w->close_dir < 0 ? -travel_um : travel_um;
+    if (w->close_dir != 0 && along_um < LEVELER_ALG3_MOVED_UM && !w->line_fresh) {
         /* closed on an estimate and nothing moved: the line lies beyond it;
          * fill or vent on until the platform breaks away */
-        w->end_valid = false;
+        w->end_trusted = false; /* still the gap's reference point when the platform breaks away */
         w->lines_valid = false;
+        a->retry = true;
     }
     if (set->alg3_learn == 0u || w->close_dir == 0) {
         return;
@@ -161,7 +162,7 @@ int32_t leveler_alg3_line_estimate(const leveler_alg3 *a, const leveler_settings
             return along_slope(set, at_target, leveler_alg3_target_um(set), h);
         }
     }
-    if (!w->end_valid) {
+    if (!w->end_valid || !w->end_trusted) {
         return 0;
     }
     int32_t p = along_slope(set, w->end_p_spring_pa, w->end_height_um, h);
@@ -202,7 +203,6 @@ void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_
     bool learn = set->alg3_learn != 0u;
     if (rate > LEVELER_ALG3_MOVING_UM_S || rate < -LEVELER_ALG3_MOVING_UM_S) {
         int8_t dir = rate > 0 ? 1 : -1;
-        w->moved = true;
         if (a->phase == LEVELER_ALG3_IDLE) {
             w->lines_valid = false; /* nobody asked for this motion: the load has changed */
         }
@@ -219,6 +219,7 @@ void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_
         /* the motion has just ended: P2 where it ended lies on its line */
         w->ended = true;
         w->end_valid = true;
+        w->end_trusted = true;
         w->end_dir = w->motion;
         w->end_height_um = leveler_alg3_height_um(a);
         w->end_p_spring_pa = p_spring_at_start(a);

@@ -100,6 +100,12 @@ static void verdict(const char *target, const char *where, const char *figure, d
     *missed += met ? 0u : 1u;
 }
 
+/* Fewer, or none where the other had none either. */
+static bool fewer(double mine, double theirs)
+{
+    return mine < theirs || (mine == 0.0 && theirs == 0.0);
+}
+
 /* The targets, algorithm 3 against algorithms 1 and 2 of the same run. */
 static unsigned print_targets(const scored *s, size_t n)
 {
@@ -121,7 +127,7 @@ static unsigned print_targets(const scored *s, size_t n)
                     m[1].step[0].first_entry_s, st->return_s,
                     st->settled && st->return_s <= 0.7 * m[1].step[0].first_entry_s, &missed);
             verdict("diaphragm: fewer switchings", sc->name, "+200 lb switchings", m[0].step[0].switchings,
-                    m[1].step[0].switchings, st->switchings, st->switchings < m[1].step[0].switchings, &missed);
+                    m[1].step[0].switchings, st->switchings, fewer(st->switchings, m[1].step[0].switchings), &missed);
         }
         if (sc->kind != CTLBENCH_REST && !has_accumulator(sc, "tube") && !has_accumulator(sc, "diaphragm")) {
             verdict("no acc: median return <= alg 1", sc->name, "median return (s)", m[0].return_median_s,
@@ -129,7 +135,7 @@ static unsigned print_targets(const scored *s, size_t n)
                     &missed);
             verdict("no acc: fewer switchings/step", sc->name, "switchings per step", m[0].switchings_per_step,
                     m[1].switchings_per_step, m[2].switchings_per_step,
-                    m[2].switchings_per_step < m[0].switchings_per_step, &missed);
+                    fewer(m[2].switchings_per_step, m[0].switchings_per_step), &missed);
             verdict("no acc: no more air vented", sc->name, "air vented (kg)", m[0].vented_kg, m[1].vented_kg,
                     m[2].vented_kg, m[2].vented_kg <= m[0].vented_kg, &missed);
         }

@@ -396,7 +396,6 @@ static void test_learns_coast(void **state)
     }
     leveler_settings learnt = set;
     bool changed = false;
-    a.watch.moved = true;
     leveler_alg3_learn_coast(&a, &set, &learnt, &changed);
     assert_true(changed);
     /* seen: tau = 10.01 mm / 20 mm/s = 500 ms, k = 10000 Pa / 10.01 mm = 999 Pa/mm; halfway from the defaults */
@@ -418,6 +417,7 @@ static void test_learns_gap_and_estimates_line_before_breakaway(void **state)
     (void)state;
     int32_t h0 = LOWER_UM - 20000;
     a.watch.end_valid = true;
+    a.watch.end_trusted = true;
     a.watch.end_dir = -1;
     a.watch.end_height_um = h0;
     a.watch.end_p_spring_pa = 650000;
@@ -437,6 +437,7 @@ static void test_failed_estimate_forgotten(void **state)
     (void)state;
     int32_t h0 = LOWER_UM - 5000;
     a.watch.end_valid = true;
+    a.watch.end_trusted = true;
     a.watch.end_dir = 1;
     a.watch.end_height_um = h0;
     a.watch.end_p_spring_pa = 650000;
@@ -446,7 +447,8 @@ static void test_failed_estimate_forgotten(void **state)
     }
     assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
     hold(h0, 200); /* nothing moves */
-    assert_false(a.watch.end_valid);
+    assert_false(a.watch.end_trusted);
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING); /* on again, now towards the break-away */
     assert_int_equal(leveler_alg3_line_estimate(&a, &set, true, h0), 0);
 }
 

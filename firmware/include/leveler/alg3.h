@@ -100,10 +100,10 @@ typedef struct {
     int32_t close_p_spring_pa;
     bool line_fresh;          /* the line of the present move was learnt in this move */
     bool ended;               /* the present motion's end is recorded */
-    bool moved;               /* the platform moved since the present fill or vent began */
     bool lines_valid;         /* alg3_up_pa / alg3_down_pa were learnt under the present load */
     int32_t close_line_pa;    /* the line of the move at the close, 0 unknown */
     bool end_valid;           /* where the last motion ended: on the up (+1) or down (-1) line */
+    bool end_trusted;         /* ... and no close on the estimate from it has failed */
     int8_t end_dir;
     int32_t end_height_um;
     int32_t end_p_spring_pa;
@@ -127,6 +127,7 @@ typedef struct {
     bool recharging;          /* accumulator charge in progress */
     bool fine;                /* the present move corrects a small departure: in bursts near the line */
     bool use_acc;             /* the present fill may draw on the accumulator (a large or fast departure) */
+    bool retry;               /* the last move closed on an estimate and moved nothing: go on as it was */
     bool bursting;            /* a burst of a fine move is under way since burst_start_ms */
     uint32_t burst_start_ms;
     uint16_t moves;
