@@ -45,6 +45,17 @@ static void row3(const char *label, const char *fmt, double a, double b, double 
     printf("  %-40s %12s %12s %12s\n", label, buf[0], buf[1], buf[2]);
 }
 
+/* Latched fault bits as codes: "none" or "1,8". */
+static void fault_codes(uint16_t bits, char *out, size_t len)
+{
+    out[0] = 0;
+    for (unsigned code = 1; code <= 16; code++)
+        if (bits & (1u << (code - 1)))
+            snprintf(out + strlen(out), len - strlen(out), "%s%u", out[0] ? "," : "", code);
+    if (!out[0])
+        snprintf(out, len, "none");
+}
+
 static void print_scenario(const scored *s)
 {
     const ctlbench_scenario *sc = &s->sc;
@@ -77,15 +88,10 @@ static void print_scenario(const scored *s)
     row3("compressor on (s)", "%.1f", m[0].compressor_on_s, m[1].compressor_on_s, m[2].compressor_on_s);
     row3("air vented (kg)", "%.4f", m[0].vented_kg, m[1].vented_kg, m[2].vented_kg);
     row3("time outside the band (s)", "%.1f", m[0].outside_s, m[1].outside_s, m[2].outside_s);
-    printf("  %-40s %12s %12s %12s\n", "latched fault codes", "", "", "");
-    for (int a = 0; a < 3; a++) {
-        char codes[40] = "";
-        for (unsigned code = 1; code <= 16; code++)
-            if (m[a].latched_faults & (1u << (code - 1)))
-                snprintf(codes + strlen(codes), sizeof codes - strlen(codes), "%s%u", codes[0] ? "," : "", code);
-        printf("%s%12s", a == 0 ? "  " "                                         " : " ", codes[0] ? codes : "none");
-    }
-    printf("\n");
+    char codes[3][40];
+    for (int a = 0; a < 3; a++)
+        fault_codes(m[a].latched_faults, codes[a], sizeof codes[a]);
+    printf("  %-40s %12s %12s %12s\n", "latched fault codes", codes[0], codes[1], codes[2]);
 }
 
 static bool has_accumulator(const ctlbench_scenario *sc, const char *kind)

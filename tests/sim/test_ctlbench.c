@@ -1,0 +1,155 @@
+/*
+ * Acceptance of algorithm 3: the short scorecard suite (ctlbench.h) run with
+ * algorithms 1, 2 and 3 here, and algorithm 3 asserted against the other two
+ * of the same run (no stored figures), plus the learnt hysteresis lines
+ * against the simulator's own lines.
+ */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <cmocka.h>
+
+#include "ctlbench.h"
+#include "leveler/alg3.h"
+#include "leveler/settings.h"
+
+#define IN_M PLANT_M_PER_IN
+
+static ctlbench_scenario suite[8];
+static size_t count;
+static ctlbench_metrics m[8][3];
+static runlog_row *rows;
+
+static int run_suite(void **state)
+{
+    (void)state;
+    count = ctlbench_suite(true, suite, 8);
+    size_t cap = ctlbench_rows_needed(suite, count);
+    rows = malloc(cap * sizeof *rows);
+    if (!rows)
+        return -1;
+    char err[512];
+    for (size_t i = 0; i < count; i++)
+        for (int a = 1; a <= 3; a++) {
+            if (ctlbench_run(&suite[i], a, CONFIG_DIR, NULL, rows, cap, &m[i][a - 1], err, sizeof err) != 0) {
+                fprintf(stderr, "%s, algorithm %d: %s\n", suite[i].name, a, err);
+                return -1;
+            }
+        }
+    return 0;
+}
+
+static int done(void **state)
+{
+    (void)state;
+    free(rows);
+    return 0;
+}
+
+static const ctlbench_metrics *runs(const char *name)
+{
+    for (size_t i = 0; i < count; i++)
+        if (strcmp(suite[i].name, name) == 0)
+            return m[i];
+    fail_msg("scenario %s not in the short suite", name);
+    return NULL;
+}
+
+/* Thesis steps without an accumulator: no slower than algorithm 1, fewer
+ * switchings, no more air out of the vent, no overshoot through the band. */
+static void test_no_accumulator_beats_algorithm1(void **state)
+{
+    (void)state;
+    const ctlbench_metrics *r = runs("thesis-900lb");
+    assert_true(r[2].return_median_s <= r[0].return_median_s);
+    assert_true(r[2].switchings_per_step < r[0].switchings_per_step);
+    assert_true(r[2].vented_kg <= r[0].vented_kg);
+    assert_int_equal(r[2].unsettled_steps, 0);
+    assert_true(r[2].overshoot_max_m <= 0.05 * IN_M);
+    assert_true(r[0].overshoot_max_m > 0.05 * IN_M); /* the thesis's algorithm does shoot through */
+}
+
+/* Diaphragm accumulator, +200 lb: back in the band to stay where algorithm 2
+ * never settles, with fewer switchings, and no overshoot. */
+static void test_diaphragm_settles_where_algorithm2_cycles(void **state)
+{
+    (void)state;
+    const ctlbench_metrics *r = runs("thesis-900lb-diaphragm");
+    assert_true(r[2].step[0].settled);
+    assert_false(r[1].step[0].settled);
+    assert_true(r[2].step[0].return_s < r[1].step[0].return_s);
+    assert_true(r[2].step[0].switchings < r[1].step[0].switchings);
+    assert_true(r[2].overshoot_max_m <= 0.05 * IN_M);
+    assert_true(r[2].vented_kg < r[1].vented_kg);
+}
+
+/* At rest with 2 counts of noise: algorithms 1 and 2 hunt, algorithm 3 neither
+ * switches nor leaves the band, and no fault is latched. */
+static void test_rest_with_noise(void **state)
+{
+    (void)state;
+    const char *names[] = {"rest-900lb-noise2", "rest-900lb-diaphragm-noise2"};
+    for (size_t i = 0; i < 2; i++) {
+        const ctlbench_metrics *r = runs(names[i]);
+        assert_int_equal(r[2].rest_switchings, 0);
+        assert_true(r[2].rest_outside_s == 0.0);
+        assert_true(r[0].rest_switchings > 0 || r[1].rest_switchings > 0);
+        assert_int_equal(r[2].latched_faults, 0);
+    }
+}
+
+/* The learnt lines while the 900 lb thesis case runs with algorithm 3, read
+ * just before the removal (35 s, 1100 lb on) and at the end (900 lb). */
+static int32_t up_before_pa, down_end_pa;
+
+static void watch_settings(double t_s, double end_s, void *user)
+{
+    (void)end_s;
+    (void)user;
+    if (t_s < 35.0)
+        up_before_pa = leveler_settings_current()->alg3_up_pa;
+    down_end_pa = leveler_settings_current()->alg3_down_pa;
+}
+
+static double plant_line_pa(const plant_config *cfg, double load_lbf, bool up, double y_m)
+{
+    const plant_hysteresis_band *b = plant_band_for_load(&cfg->plant, load_lbf * PLANT_N_PER_LBF);
+    return (up ? plant_up_limit_pag(b, y_m) : plant_down_limit_pag(b, y_m)) + cfg->plant.ambient_pa;
+}
+
+/* Learning: the break-away pressure learnt under 1100 lb and the hold pressure
+ * learnt after the removal lie on the simulator's own UPlimit/DPlimit lines of
+ * those loads at the target height, within 1 psi. */
+static void test_learnt_lines_match_the_plant(void **state)
+{
+    (void)state;
+    static plant_config cfg;
+    char err[256];
+    assert_int_equal(plant_config_load(CONFIG_DIR "/thesis-900lb.ini", &cfg, err, sizeof err), 0);
+    sim_options so = {.config = &cfg, .algorithm = 3, .end_s = 95.0, .progress = watch_settings};
+    static sim_result res;
+    assert_int_equal(sim_run(&so, &res, err, sizeof err), 0);
+    double y = leveler_alg3_target_um(leveler_settings_current()) * 1e-6;
+    double up = plant_line_pa(&cfg, 1100.0, true, y), down = plant_line_pa(&cfg, 900.0, false, y);
+    printf("learnt up %.2f psia (plant, 1100 lb: %.2f), down %.2f psia (plant, 900 lb: %.2f)\n",
+           up_before_pa / PLANT_PA_PER_PSI, up / PLANT_PA_PER_PSI, down_end_pa / PLANT_PA_PER_PSI,
+           down / PLANT_PA_PER_PSI);
+    assert_true(fabs(up_before_pa - up) < PLANT_PA_PER_PSI);
+    assert_true(fabs(down_end_pa - down) < PLANT_PA_PER_PSI);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_no_accumulator_beats_algorithm1),
+        cmocka_unit_test(test_diaphragm_settles_where_algorithm2_cycles),
+        cmocka_unit_test(test_rest_with_noise),
+        cmocka_unit_test(test_learnt_lines_match_the_plant),
+    };
+    return cmocka_run_group_tests(tests, run_suite, done);
+}
