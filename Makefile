@@ -2,7 +2,7 @@
 #   make test       unit, simulator, Modbus and analysis tests (ASan+UBSan host build) + board build checks
 #   make sim        the 900 lb thesis case with the firmware in the loop -> build/sim/
 #   make firmware   STM32F103 image -> build/stm32f103/leveler.{elf,bin,hex} + size report
-#   make bench      speed figures (simulator, diagnosis)
+#   make bench      speed figures (simulator, diagnosis) and the controller scorecard (docs/controller.md)
 #   make coverage   line coverage of firmware/ (gcovr)
 #   make fuzz       libFuzzer on the Modbus RTU frame parser (FUZZ_SECONDS=60)
 #   make blindtest  the full blind test of the sim-to-real diagnosis
