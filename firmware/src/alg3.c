@@ -163,6 +163,9 @@ static void start_move(leveler_alg3 *a, int8_t dir, int64_t off_um, uint32_t now
     bool still = a->rate_um_s < LEVELER_ALG3_MOVING_UM_S && a->rate_um_s > -LEVELER_ALG3_MOVING_UM_S;
     bool fine = off_um < LEVELER_ALG3_FINE_UM && still;
     a->use_acc = off_um >= LEVELER_ALG3_ACC_MIN_UM || (a->retry && a->use_acc);
+    a->burst_ms = !a->retry ? (uint16_t)LEVELER_ALG3_BURST_MS
+                            : (uint16_t)(a->burst_ms >= LEVELER_ALG3_BURST_MAX_MS / 2u ? LEVELER_ALG3_BURST_MAX_MS
+                                                                                       : 2u * a->burst_ms);
     a->retry = false;
     a->out_dir = 0; /* the departure is being dealt with: a new one must be seen afresh */
     a->out_area_um_ms = 0;
@@ -217,9 +220,11 @@ bool leveler_alg3_close_now(const leveler_settings *set, bool up, int32_t h, int
     return h <= target || h < set->band_lower_um || by_rate <= target || by_line <= target;
 }
 
-/* A fine move: P2 goes on towards the line in one go while it is farther
- * than the burst zone; then one burst, and the settle that follows shows
- * whether it moved. */
+/* A fine move: with the line known, P2 goes on towards it in one go while it
+ * is farther than the burst zone; then one burst, and the settle that follows
+ * shows whether it moved. A burst that moved nothing drops the estimate and
+ * makes the next burst twice as long (up to LEVELER_ALG3_BURST_MAX_MS), so a
+ * line farther than thought is still reached in a few bursts. */
 static bool burst_done(leveler_alg3 *a, bool up, int32_t p_spring_pa, int32_t line, uint32_t now_ms)
 {
     if (!a->fine) {
@@ -230,7 +235,7 @@ static bool burst_done(leveler_alg3 *a, bool up, int32_t p_spring_pa, int32_t li
         a->bursting = true;
         a->burst_start_ms = now_ms;
     }
-    return a->bursting && now_ms - a->burst_start_ms >= LEVELER_ALG3_BURST_MS;
+    return a->bursting && now_ms - a->burst_start_ms >= a->burst_ms;
 }
 
 /* Filling or venting: close when leveler_alg3_close_now() says so, or a burst is done. */

@@ -28,10 +28,10 @@
  *    (at most alg3_settle_ms) before it may act again;
  *  - corrects a small departure (under LEVELER_ALG3_FINE_UM) without the
  *    accumulator and, once P2 is within LEVELER_ALG3_BURST_ZONE_PA of the
- *    line (or the line is unknown), in bursts of LEVELER_ALG3_BURST_MS with
- *    a settle after each: a step of a hysteresis system cannot be smaller
- *    than what the excess at the break-away carries, so the excess is built
- *    up in small steps;
+ *    line (or at once when the line is unknown), in bursts with a settle
+ *    after each, from LEVELER_ALG3_BURST_MS, doubling while they move
+ *    nothing: a step of a hysteresis system cannot be smaller than what the
+ *    excess at the break-away carries, so the excess is built up in steps;
  *  - gives every output a minimum on and off time (dwell.h);
  *  - learns the coast times and the hysteresis lines from the rig's own
  *    motion (alg3_learn.c) and keeps them in the settings (flash);
@@ -77,7 +77,8 @@ typedef enum {
 #define LEVELER_ALG3_K_MIN_PA_PER_MM 50
 #define LEVELER_ALG3_K_MAX_PA_PER_MM 20000
 #define LEVELER_ALG3_FINE_UM 2540          /* a departure under 0.1 in is corrected in bursts */
-#define LEVELER_ALG3_BURST_MS 100u        /* one burst of a fine move */
+#define LEVELER_ALG3_BURST_MS 100u        /* the first burst of a fine move */
+#define LEVELER_ALG3_BURST_MAX_MS 1600u   /* a burst that moved nothing doubles the next, up to this */
 #define LEVELER_ALG3_ACC_MIN_UM 12700     /* the accumulator helps only departures beyond 0.5 in (or fast ones) */
 #define LEVELER_ALG3_BURST_ZONE_PA 3000   /* bursts start this close to the line (0.44 psi) */
 #define LEVELER_ALG3_MOVED_UM 500        /* a close followed by less travel than this (0.02 in) moved nothing */
@@ -130,6 +131,7 @@ typedef struct {
     bool retry;               /* the last move closed on an estimate and moved nothing: go on as it was */
     bool bursting;            /* a burst of a fine move is under way since burst_start_ms */
     uint32_t burst_start_ms;
+    uint16_t burst_ms;        /* length of the present burst */
     uint16_t moves;
     leveler_dwell dwell;
     leveler_alg3_watch watch;
