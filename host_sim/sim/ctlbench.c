@@ -139,7 +139,7 @@ size_t ctlbench_rows_needed(const ctlbench_scenario *sc, size_t count)
 /* The outputs of a log row as bits (the run-log's actuator columns, in one place). */
 static unsigned row_bits(const runlog_row *r)
 {
-    return (unsigned)((r->compressor > 0) | (r->solenoid > 0) << 1 | (r->vent > 0) << 2 | (r->acc_valve > 0) << 3);
+    return (unsigned)((r->compressor > 0) | (r->spring_valve > 0) << 1 | (r->vent_valve > 0) << 2 | (r->acc_valve > 0) << 3);
 }
 
 typedef struct {
@@ -234,7 +234,7 @@ static void score_run(const ctlbench_scenario *sc, const runlog_row *rows, size_
         bool switched = i > 0 && row_bits(r) != row_bits(&rows[i - 1]);
         m->switchings += switched;
         m->compressor_on_s += r->compressor > 0 ? TICK_S : 0.0;
-        if (r->vent > 0 && r->p_pipe_pa > pl->p.ambient_pa)
+        if (r->vent_valve > 0 && r->p_pipe_pa > pl->p.ambient_pa)
             m->vented_kg += plant_orifice_flow(pl, cda, r->p_pipe_pa, pl->p.ambient_pa) * TICK_S;
         double off = outside_m(b, r->height_m);
         m->outside_s += off > 0.0 ? TICK_S : 0.0;

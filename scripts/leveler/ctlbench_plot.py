@@ -44,7 +44,7 @@ def plot_scenario(directory, configs_dir, scenario):
     fig, axes = plt.subplots(4, 1, figsize=(11, 8.5), sharex=True,
                              gridspec_kw={"height_ratios": [3, 1, 1, 1]})
     ax_h = axes[0]
-    ax_h.axhspan(cfg.band_low_m / thesis.M_PER_IN, cfg.band_high_m / thesis.M_PER_IN,
+    ax_h.axhspan(cfg.band_lower_m / thesis.M_PER_IN, cfg.band_upper_m / thesis.M_PER_IN,
                  color="#2ca02c", alpha=0.15, lw=0, label="band")
     for a in ALGORITHMS:
         ax_h.plot(logs[a].t_s, logs[a].height_m / thesis.M_PER_IN, color=COLORS[a], lw=1.0, label=f"algorithm {a}")
