@@ -1,0 +1,145 @@
+/*
+ * ctypes entry points of the processor-in-the-loop harness (host_sim/pil/plant.py):
+ * the project's C plant stepped one 10 ms tick at a time, and the holding
+ * registers a commissioning engineer writes for a config (commission.c run on
+ * the host build of the firmware, then read back through the register map).
+ * The emulated STM32F103 image is the controller; this library only holds
+ * the plant and knows nothing of the emulator.
+ *
+ * One plant per process (static state), like the firmware it stands beside.
+ * Built without sanitizers so the venv python can dlopen it.
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "commission.h"
+#include "leveler/app.h"
+#include "leveler/hal.h"
+#include "leveler/regmap.h"
+#include "plant.h"
+#include "simloop.h"
+
+static plant_config s_cfg;
+static plant s_plant;
+static plant_rng s_rng;
+static sim_load_step s_steps[4];
+static size_t s_step_count, s_step_i;
+static double s_end_s, s_t_s;
+
+/* Version of this ABI; plant.py refuses a library with another. */
+int pil_abi_version(void) { return 1; }
+
+/* Loads a config and puts the plant in its initial state at t = 0.
+ * Returns the config's algorithm (1, 2, ...), or -1 with "file:line: ..." in err. */
+int pil_open(const char *config_path, char *err, int err_len)
+{
+    if (plant_config_load(config_path, &s_cfg, err, (size_t)err_len) != 0)
+        return -1;
+    plant_init(&s_plant, &s_cfg.plant);
+    plant_rng_seed(&s_rng, s_cfg.sensors.noise_seed);
+    s_step_count = sim_schedule_from_config(&s_cfg, s_steps, &s_end_s);
+    s_step_i = 0;
+    s_t_s = 0.0;
+    return s_cfg.algorithm;
+}
+
+double pil_end_s(void) { return s_end_s; }
+
+/* The actuators over the first tick (config [initial]): compressor, spring, vent, acc. */
+void pil_initial_outputs(int32_t out[4])
+{
+    bool o[HAL_OUT_COUNT];
+    sim_initial_outputs(&s_cfg, o);
+    for (int i = 0; i < 4; i++)
+        out[i] = o[i];
+}
+
+/* The four transducers as 12-bit ADC counts now (height, P2, P1, P3), with the
+ * config's seeded noise, one draw per call as leveler-sim draws one per tick. */
+void pil_sensor_counts(uint16_t counts[4])
+{
+    plant_sensor_counts(&s_plant, &s_cfg.sensors, s_cfg.sensors.noise_counts > 0.0 ? &s_rng : NULL, counts);
+}
+
+/* t, height m, P2, P1, P3 Pa (NaN without accumulator), load N. */
+void pil_state(double out[6])
+{
+    out[0] = s_t_s;
+    out[1] = s_plant.x[PLANT_X_Y];
+    out[2] = s_plant.x[PLANT_X_P2];
+    out[3] = s_plant.x[PLANT_X_P1];
+    out[4] = s_plant.p.acc_type == PLANT_ACC_NONE ? NAN : s_plant.x[PLANT_X_P3];
+    out[5] = s_plant.in.load_n;
+}
+
+/* Sets the outputs (compressor, spring, vent, acc) and the scheduled load for
+ * the tick starting now; call pil_advance() after. */
+void pil_set_outputs(const int32_t outputs[4])
+{
+    const double tick_s = LEVELER_TICK_MS / 1000.0;
+    while (s_step_i + 1 < s_step_count && s_steps[s_step_i + 1].t_s <= s_t_s + 0.5 * tick_s)
+        s_step_i++;
+    plant_inputs in = {outputs[0] != 0, outputs[1] != 0, outputs[2] != 0, outputs[3] != 0,
+                       s_steps[s_step_i].load_n};
+    plant_set_inputs(&s_plant, &in);
+}
+
+/* One 10 ms tick of RK4 (the config's sub-steps) under the inputs set last. */
+void pil_advance(void)
+{
+    const double tick_s = LEVELER_TICK_MS / 1000.0;
+    plant_advance(&s_plant, tick_s, s_cfg.substeps_per_tick);
+    s_t_s += tick_s;
+}
+
+/*
+ * The holding registers after commissioning for this config (algorithm 0 =
+ * the config's), as runs of consecutive registers a master can write with
+ * FC 16: runs[2k] = first address, runs[2k+1] = count; values[addr] = value.
+ * Returns the number of runs, or -1 with a message in err.
+ */
+int pil_commission_registers(int algorithm, uint16_t *runs, int max_runs, uint16_t *values, int max_values,
+                             char *err, int err_len)
+{
+    sim_hal_reset();
+    leveler_app_init();
+    if (sim_commission(&s_cfg, algorithm ? algorithm : s_cfg.algorithm, err, (size_t)err_len) != 0)
+        return -1;
+    uint16_t size = leveler_regs_table_size(LEVELER_TABLE_HOLDING_REGISTER);
+    if (size > max_values) {
+        snprintf(err, (size_t)err_len, "holding table has %u registers, room for %d", size, max_values);
+        return -1;
+    }
+    if (leveler_regs_read(LEVELER_TABLE_HOLDING_REGISTER, 0, size, values) != LEVELER_REG_OK) {
+        snprintf(err, (size_t)err_len, "holding registers 0..%u unreadable", size - 1u);
+        return -1;
+    }
+    int n = 0;
+    for (uint16_t a = 0; a < size;) {
+        /* Reads pass over gaps (they read 0); a write of the value back tells a
+         * register (1 or 2 words) from a gap. */
+        uint16_t len = 0;
+        for (uint16_t w = 1; w <= 2 && len == 0 && a + w <= size; w++)
+            if (leveler_regs_write(LEVELER_TABLE_HOLDING_REGISTER, a, w, &values[a], NULL) == LEVELER_REG_OK)
+                len = w;
+        if (len == 0) {
+            a++; /* a gap in the table */
+            continue;
+        }
+        if (n > 0 && runs[2 * n - 2] + runs[2 * n - 1] == a && runs[2 * n - 1] + len <= 123u) {
+            runs[2 * n - 1] += len; /* joins the run (FC 16 writes at most 123 registers) */
+        } else {
+            if (n >= max_runs) {
+                snprintf(err, (size_t)err_len, "more than %d register runs", max_runs);
+                return -1;
+            }
+            runs[2 * n] = a;
+            runs[2 * n + 1] = len;
+            n++;
+        }
+        a += len;
+    }
+    return n;
+}
