@@ -2,7 +2,8 @@
 #   make test       unit, simulator, Modbus and analysis tests (ASan+UBSan host build) + board build checks
 #   make sim        the 900 lb thesis case with the firmware in the loop -> build/sim/
 #   make firmware   STM32F103 image -> build/stm32f103/leveler.{elf,bin,hex} + size report
-#   make bench      speed figures (simulator, diagnosis) and the controller scorecard (docs/controller.md)
+#   make pil        that image emulated (Qiling) against the plant: 900 lb case beside leveler-sim
+#   make bench      speed figures (simulator, diagnosis, PIL cases and tick cost) and the controller scorecard (docs/controller.md)
 #   make coverage   line coverage of firmware/ (gcovr)
 #   make fuzz       libFuzzer on the Modbus RTU frame parser (FUZZ_SECONDS=60)
 #   make blindtest  the full blind test of the sim-to-real diagnosis
@@ -15,7 +16,7 @@ PY        := $(CURDIR)/.venv/bin/python
 FUZZ_SECONDS ?= 60
 export LEVELER_PYTHON := $(PY)
 
-.PHONY: all test sim firmware bench coverage fuzz blindtest flash clean bootstrap
+.PHONY: all test sim pil firmware bench coverage fuzz blindtest flash clean bootstrap
 
 all: test
 
@@ -44,10 +45,16 @@ firmware: bootstrap
 	$(call configure,build/stm32f103,-DCMAKE_BUILD_TYPE=MinSizeRel -DCMAKE_TOOLCHAIN_FILE=$(CURDIR)/cmake/arm-none-eabi.cmake)
 	$(CMAKE) --build build/stm32f103 -j $(JOBS)
 
+pil: bootstrap firmware
+	@mkdir -p build
+	$(call configure,build/pil,-DCMAKE_BUILD_TYPE=Release)
+	$(CMAKE) --build build/pil -j $(JOBS)
+	$(CMAKE) --build build/pil --target run-pil
+
 flash: firmware
 	$(CMAKE) --build build/stm32f103 --target flash
 
-bench: bootstrap
+bench: bootstrap firmware
 	@mkdir -p build
 	$(call configure,build/bench,-DCMAKE_BUILD_TYPE=Release)
 	$(CMAKE) --build build/bench -j $(JOBS)

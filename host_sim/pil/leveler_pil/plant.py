@@ -68,9 +68,12 @@ class Plant:
 
     def step(self, outputs):
         """Sets the actuators (compressor, spring, vent, acc) and the scheduled
-        load for the tick starting now, then integrates the 10 ms tick."""
+        load for the tick starting now, integrates the 10 ms tick, and returns
+        the state at its start with that tick's load (a run-log row)."""
         self.lib.pil_set_outputs((ctypes.c_int32 * 4)(*[int(bool(o)) for o in outputs]))
+        st = self.state()
         self.lib.pil_advance()
+        return st
 
     def commission_registers(self, algorithm=0):
         """[(address, [values...]), ...]: the holding registers a commissioning

@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,6 +44,13 @@ def elf_symbols(path):
     with open(path, "rb") as f:
         syms = ELFFile(f).get_section_by_name(".symtab")
         return {s.name: s["st_value"] for s in syms.iter_symbols() if s.name}
+
+
+def register_address(table, name):
+    """Address of a register in firmware/regmap/registers.json (the one source)."""
+    with open(ROOT / "firmware/regmap/registers.json") as f:
+        regs = json.load(f)["registers"]
+    return next(r["address"] for r in regs if r["table"] == table and r["name"] == name)
 
 
 def call_returns(path, target):
@@ -170,11 +178,10 @@ class Pil:
         self._tick_entry = None
 
     def _plant_step(self, outputs):
-        st = self.plant.state()
+        st = self.plant.step(outputs)
         self.trace.t_s.append(st[0])
         self.trace.state.append(st[1:])
         self.trace.outputs.append(tuple(outputs))
-        self.plant.step(outputs)
         self.board.adc_counts[:] = self.plant.sensor_counts()
         self.board.dma1.write_conversions()
 
@@ -235,6 +242,25 @@ class Pil:
             raise PilError(f"read of {table} {addr}..{addr + count - 1}: {'no reply' if reply is None else reply}")
         return list(reply.registers)
 
+    def read_u32_register(self, name):
+        hi, lo = self.read_registers("input", register_address("input", name), 2)
+        return hi << 16 | lo
+
+    def write_coil(self, name, value):
+        from pymodbus.pdu.bit_message import WriteSingleCoilRequest
+        reply = self.request(WriteSingleCoilRequest(address=register_address("coil", name), bits=[bool(value)],
+                                                    dev_id=1))
+        if reply is None or reply.isError():
+            raise PilError(f"write of coil {name}: {'no reply' if reply is None else reply}")
+
+    def read_bits(self, name, count=1):
+        from pymodbus.pdu.bit_message import ReadDiscreteInputsRequest
+        reply = self.request(ReadDiscreteInputsRequest(address=register_address("discrete", name), count=count,
+                                                       dev_id=1))
+        if reply is None or reply.isError():
+            raise PilError(f"read of discrete input {name}: {'no reply' if reply is None else reply}")
+        return list(reply.bits[:count])
+
     def commission(self, algorithm=0, settle_s=1.5):
         """Writes the config's commissioning registers over Modbus, lets the
         image persist them (it saves 1 s after the last change), power-cycles
@@ -258,4 +284,7 @@ class Pil:
         end = self.plant.end_s if end_s is None else end_s
         while not self.trace.t_s or self.trace.t_s[-1] < end - 1e-9:
             self.run_for(0.1)
+        keep = sum(1 for t in self.trace.t_s if t <= end + 1e-9)
+        for col in (self.trace.t_s, self.trace.state, self.trace.outputs):
+            del col[keep:]
         return self.trace
