@@ -30,7 +30,7 @@ static double s_end_s, s_t_s;
 static uint64_t s_ticks;
 
 /* Version of this ABI; plant.py refuses a library with another. */
-int pil_abi_version(void) { return 1; }
+int pil_abi_version(void) { return 2; }
 
 /* Loads a config and puts the plant in its initial state at t = 0.
  * Returns the config's algorithm (1, 2, ...), or -1 with "file:line: ..." in err. */
@@ -58,11 +58,13 @@ void pil_initial_outputs(int32_t out[4])
         out[i] = o[i];
 }
 
-/* The four transducers as 12-bit ADC counts now (height, P2, P1, P3), with the
- * config's seeded noise, one draw per call as leveler-sim draws one per tick. */
-void pil_sensor_counts(uint16_t counts[4])
+/* The four transducers as 12-bit ADC counts now (height, P2, P1, P3). noisy:
+ * with the config's seeded noise, one draw per call as leveler-sim draws one
+ * per tick; 0 for readings outside the run (boot, commissioning). */
+void pil_sensor_counts(int noisy, uint16_t counts[4])
 {
-    plant_sensor_counts(&s_plant, &s_cfg.sensors, s_cfg.sensors.noise_counts > 0.0 ? &s_rng : NULL, counts);
+    bool draw = noisy && s_cfg.sensors.noise_counts > 0.0;
+    plant_sensor_counts(&s_plant, &s_cfg.sensors, draw ? &s_rng : NULL, counts);
 }
 
 /* t, height m, P2, P1, P3 Pa (NaN without accumulator), load N. */

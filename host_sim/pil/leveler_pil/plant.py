@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[3]
-ABI = 1
+ABI = 2
 _u16p = ctypes.POINTER(ctypes.c_uint16)
 
 
@@ -54,10 +54,11 @@ class Plant:
         self.lib.pil_initial_outputs(out)
         return tuple(bool(v) for v in out)
 
-    def sensor_counts(self):
-        """Height, P2, P1, P3 as 12-bit counts (one noise draw when the config has noise)."""
+    def sensor_counts(self, noisy=True):
+        """Height, P2, P1, P3 as 12-bit counts; noisy: one draw of the config's
+        seeded noise (as leveler-sim draws one per tick), else noise-free."""
         c = (ctypes.c_uint16 * 4)()
-        self.lib.pil_sensor_counts(c)
+        self.lib.pil_sensor_counts(int(noisy), c)
         return list(c)
 
     def state(self):

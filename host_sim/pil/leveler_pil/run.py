@@ -118,7 +118,7 @@ class Pil:
         """Power-on or reset: a new core and peripherals, flash pages kept."""
         if self.board is not None:
             self.settings = bytes(self.board.settings.data)
-        counts = self.plant.sensor_counts() if self.plant else [2048, 2048, 2048, 2048]
+        counts = self.plant.sensor_counts(noisy=False) if self.plant else [2048, 2048, 2048, 2048]
         b = Board(self.elf, settings=self.settings, reset_flags=flags, hse_ok=self.hse_ok, now=self.now,
                   adc_counts=counts)
         b.on_systick = self._on_systick
