@@ -3,13 +3,13 @@ client as the master on USART1's byte stream: measurements, a band change the pl
 exception 03 for an invalid write."""
 
 import time
+from pathlib import Path
 
 from pymodbus.client import ModbusSerialClient
 
 from leveler_pil.serial_bridge import SerialBridge
 from leveler_pil.run import Pil, register_address
 
-from conftest import CONFIGS
 
 
 def i32(hi, lo):
@@ -23,7 +23,7 @@ def words(v):
 
 
 def test_master_reads_changes_band_and_is_refused(elf):
-    pil = Pil(CONFIGS / "thesis-900lb.ini", elf)
+    pil = Pil(Path(__file__).parent / "configs/steady-900lb.ini", elf)
     pil.commission()
     pil.start_plant()
     band_addr = register_address("holding", "band_lower_um")
