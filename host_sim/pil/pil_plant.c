@@ -20,83 +20,83 @@
 #include "leveler/regmap.h"
 #include "plant.h"
 #include "simloop.h"
+#include "stepper.h"
 
 static plant_config s_cfg;
 static plant s_plant;
 static plant_rng s_rng;
 static sim_load_step s_steps[4];
-static size_t s_step_count, s_step_i;
-static double s_end_s, s_t_s;
-static uint64_t s_ticks;
+static sim_schedule_cursor s_cursor;
+static sim_stepper s_stepper;
+static double s_end_s;
+static bool s_outputs[HAL_OUT_COUNT]; /* what the emulated image drives, for the commands hook */
 
 /* Version of this ABI; plant.py refuses a library with another. */
-int pil_abi_version(void) { return 2; }
+int pil_abi_version(void) { return 3; }
 
-/* Loads a config and puts the plant in its initial state at t = 0.
- * Returns the config's algorithm (1, 2, ...), or -1 with "file:line: ..." in err. */
+/* The stepper's commands hook: the outputs the image set (GPIOB), handed in
+ * by pil_decide(); the emulated image, not this library, runs the firmware. */
+static void image_outputs(sim_stepper *st, void *user, bool out[HAL_OUT_COUNT])
+{
+    (void)st;
+    (void)user;
+    memcpy(out, s_outputs, sizeof s_outputs);
+}
+
+/* Loads a config and puts the plant in its initial state at t = 0 behind the
+ * one stepper (host_sim/sim/stepper.h). Returns the config's algorithm, or -1
+ * with "file:line: ..." in err. */
 int pil_open(const char *config_path, char *err, int err_len)
 {
     if (plant_config_load(config_path, &s_cfg, err, (size_t)err_len) != 0)
         return -1;
     plant_init(&s_plant, &s_cfg.plant);
     plant_rng_seed(&s_rng, s_cfg.sensors.noise_seed);
-    s_step_count = sim_schedule_from_config(&s_cfg, s_steps, &s_end_s);
-    s_step_i = 0;
-    s_t_s = 0.0;
-    s_ticks = 0;
+    s_cursor = (sim_schedule_cursor){s_steps, sim_schedule_from_config(&s_cfg, s_steps, &s_end_s), 0};
+    s_stepper = (sim_stepper){.cfg = &s_cfg, .plant = &s_plant, .ops = &sim_nominal_plant,
+                              .commands = image_outputs, .load = sim_load_from_schedule,
+                              .load_user = &s_cursor, .rng = s_cfg.sensors.noise_counts > 0.0 ? &s_rng : NULL,
+                              .initial_outputs = true};
+    sim_stepper_start(&s_stepper);
     return s_cfg.algorithm;
 }
 
 double pil_end_s(void) { return s_end_s; }
-
-/* The actuators over the first tick (config [initial]): compressor, spring, vent, acc. */
-void pil_initial_outputs(int32_t out[4])
-{
-    bool o[HAL_OUT_COUNT];
-    sim_initial_outputs(&s_cfg, o);
-    for (int i = 0; i < 4; i++)
-        out[i] = o[i];
-}
 
 /* The four transducers as 12-bit ADC counts now (height, P2, P1, P3). noisy:
  * with the config's seeded noise, one draw per call as leveler-sim draws one
  * per tick; 0 for readings outside the run (boot, commissioning). */
 void pil_sensor_counts(int noisy, uint16_t counts[4])
 {
-    bool draw = noisy && s_cfg.sensors.noise_counts > 0.0;
-    plant_sensor_counts(&s_plant, &s_cfg.sensors, draw ? &s_rng : NULL, counts);
+    s_stepper.ops->sensed(s_stepper.plant, s_stepper.sensed);
+    plant_counts(&s_cfg.sensors, s_stepper.sensed, noisy ? s_stepper.rng : NULL, counts);
 }
 
-/* t, height m, P2, P1, P3 Pa (NaN without accumulator), load N. */
+/* Decides the tick starting now: the image's outputs (compressor, spring,
+ * vent, acc; the config's [initial] ones at the first tick) and the scheduled
+ * load become the plant's inputs. applied = what the plant got. */
+void pil_decide(const int32_t outputs[4], int32_t applied[4])
+{
+    for (int i = 0; i < 4; i++)
+        s_outputs[i] = outputs[i] != 0;
+    sim_stepper_decide(&s_stepper);
+    for (int i = 0; i < 4; i++)
+        applied[i] = s_stepper.out[i];
+}
+
+/* t, height m, P2, P1, P3 Pa (NaN without accumulator), load N of the tick decided last. */
 void pil_state(double out[6])
 {
-    out[0] = s_t_s;
+    out[0] = s_stepper.t_s_now;
     out[1] = s_plant.x[PLANT_X_Y];
     out[2] = s_plant.x[PLANT_X_P2];
     out[3] = s_plant.x[PLANT_X_P1];
     out[4] = s_plant.p.acc_type == PLANT_ACC_NONE ? NAN : s_plant.x[PLANT_X_P3];
-    out[5] = s_plant.in.load_n;
+    out[5] = s_stepper.in.load_n;
 }
 
-/* Sets the outputs (compressor, spring, vent, acc) and the scheduled load for
- * the tick starting now; call pil_advance() after. */
-void pil_set_outputs(const int32_t outputs[4])
-{
-    const double tick_s = LEVELER_TICK_MS / 1000.0;
-    while (s_step_i + 1 < s_step_count && s_steps[s_step_i + 1].t_s <= s_t_s + 0.5 * tick_s)
-        s_step_i++;
-    plant_inputs in = {outputs[0] != 0, outputs[1] != 0, outputs[2] != 0, outputs[3] != 0,
-                       s_steps[s_step_i].load_n};
-    plant_set_inputs(&s_plant, &in);
-}
-
-/* One 10 ms tick of RK4 (the config's sub-steps) under the inputs set last. */
-void pil_advance(void)
-{
-    const double tick_s = LEVELER_TICK_MS / 1000.0;
-    plant_advance(&s_plant, tick_s, s_cfg.substeps_per_tick);
-    s_t_s = (double)++s_ticks * tick_s; /* no drift from summing 0.01 */
-}
+/* One 10 ms tick of RK4 (the config's sub-steps) under the inputs decided last. */
+void pil_advance(void) { (void)sim_stepper_advance(&s_stepper); }
 
 /*
  * The holding registers after commissioning for this config (algorithm 0 =
@@ -107,9 +107,8 @@ void pil_advance(void)
 int pil_commission_registers(int algorithm, uint16_t *runs, int max_runs, uint16_t *values, int max_values,
                              char *err, int err_len)
 {
-    sim_hal_reset();
-    leveler_app_init();
-    if (sim_commission(&s_cfg, algorithm ? algorithm : s_cfg.algorithm, err, (size_t)err_len) != 0)
+    /* the host firmware, reset and commissioned as leveler-sim does it */
+    if (sim_firmware_start(&s_cfg, algorithm ? algorithm : s_cfg.algorithm, err, (size_t)err_len) != 0)
         return -1;
     uint16_t size = leveler_regs_table_size(LEVELER_TABLE_HOLDING_REGISTER);
     if (size > max_values) {

@@ -129,14 +129,14 @@ class Board:
 
     # ---- code ----
     def _on_block(self, uc, addr, size, _):
-        if not self.in_isr and (self._events and self.now >= self._events[0][0]):
-            self._stop_at(uc, addr)    # an event is due: take it before this block
-            return
         info = self._blocks.get(addr)
         if info is None:
-            info = self._blocks[addr] = cyc.analyse_block(self.uc.mem_read(addr, size), addr)
-        n, c, spin = info
-        if spin and not self.in_isr:   # b . : nothing changes until an interrupt
+            info = self._blocks[addr] = self._analyse(addr, size)
+        n, c, spin, in_it = info
+        if not self.in_isr and not in_it and (self._events and self.now >= self._events[0][0]):
+            self._stop_at(uc, addr)    # an event is due: take it before this block
+            return
+        if spin and not self.in_isr and not in_it:   # b . : nothing changes until an interrupt
             self.idle = True
             self._stop_at(uc, addr)
             return
@@ -146,6 +146,11 @@ class Board:
             self.isr_cycles += c
         self.cycles += c
         self.now += c * self.unit
+
+    def _analyse(self, addr, size):
+        lo = max(FLASH_BASE, addr - 16) if addr >= FLASH_BASE else max(0, addr - 16)
+        before = self.uc.mem_read(lo, addr - lo) if addr > lo else b""
+        return cyc.analyse_block(self.uc.mem_read(addr, size), addr) + (cyc.starts_in_it_block(before, addr),)
 
     def _stop_at(self, uc, addr):
         """Stops before the block at addr runs (a stop requested in a block

@@ -61,3 +61,26 @@ def analyse_block(code, addr):
         if insn.mnemonic.split(".")[0] == "b" and insn.op_str == f"#0x{addr:x}" and n == 1:
             spin = True
     return n, c, spin and n == 1
+
+
+def _it_length(halfword):
+    """Instructions an IT instruction covers (0 if halfword is not IT)."""
+    if halfword & 0xFF00 != 0xBF00 or halfword & 0xF == 0:
+        return 0
+    mask = halfword & 0xF
+    return 4 - (mask & -mask).bit_length() + 1
+
+
+def starts_in_it_block(before, addr):
+    """True when the instruction at addr is inside an IT block. before: the up
+    to 16 code bytes that end at addr. An interrupt must not be taken there:
+    resuming with emu_start would lose the IT state."""
+    for back in range(2, len(before) + 1, 2):
+        hw = int.from_bytes(before[len(before) - back:len(before) - back + 2], "little")
+        n = _it_length(hw)
+        if not n:
+            continue
+        covered = sum(1 for _ in _cs.disasm(bytes(before[len(before) - back + 2:]), addr - back + 2))
+        if covered < n:
+            return True
+    return False

@@ -1,7 +1,7 @@
-"""The project's C plant through libleveler_pil_plant.so (host_sim/pil/pil_plant.c).
-
-The one place the harness touches the plant: when the firmware-in-the-loop
-stepper of host_sim/sim offers plant hooks, this module moves onto it.
+"""The project's C plant through libleveler_pil_plant.so (host_sim/pil/pil_plant.c),
+stepped by the one firmware-in-the-loop stepper (host_sim/sim/stepper.h) with
+the emulated image's outputs as its commands hook. The one place the harness
+touches the plant.
 The library is looked up in $LEVELER_PIL_PLANT_LIB, then in the build folders.
 """
 
@@ -13,7 +13,7 @@ import os
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[3]
-ABI = 2
+ABI = 3
 _u16p = ctypes.POINTER(ctypes.c_uint16)
 
 
@@ -49,11 +49,6 @@ class Plant:
             raise PlantError(err.value.decode())
         self.end_s = self.lib.pil_end_s()
 
-    def initial_outputs(self):
-        out = (ctypes.c_int32 * 4)()
-        self.lib.pil_initial_outputs(out)
-        return tuple(bool(v) for v in out)
-
     def sensor_counts(self, noisy=True):
         """Height, P2, P1, P3 as 12-bit counts; noisy: one draw of the config's
         seeded noise (as leveler-sim draws one per tick), else noise-free."""
@@ -68,13 +63,15 @@ class Plant:
         return tuple(s)
 
     def step(self, outputs):
-        """Sets the actuators (compressor, spring, vent, acc) and the scheduled
-        load for the tick starting now, integrates the 10 ms tick, and returns
-        the state at its start with that tick's load (a run-log row)."""
-        self.lib.pil_set_outputs((ctypes.c_int32 * 4)(*[int(bool(o)) for o in outputs]))
+        """One tick through the stepper (host_sim/sim/stepper.h): the image's
+        actuators (compressor, spring, vent, acc; the config's [initial] ones at
+        the first tick) and the scheduled load, then 10 ms of RK4. Returns the
+        state at the tick's start with its load, and the actuators applied."""
+        applied = (ctypes.c_int32 * 4)()
+        self.lib.pil_decide((ctypes.c_int32 * 4)(*[int(bool(o)) for o in outputs]), applied)
         st = self.state()
         self.lib.pil_advance()
-        return st
+        return st, tuple(bool(v) for v in applied)
 
     def commission_registers(self, algorithm=0):
         """[(address, [values...]), ...]: the holding registers a commissioning

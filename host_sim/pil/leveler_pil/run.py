@@ -93,6 +93,7 @@ class Pil:
         self.settings = None
         self.board = None
         self.boots = []                     # (time_s, reset flags)
+        self.resets = []                    # watchdog resets: (time_s, where the core was, anomalies)
         self.rx = bytearray()               # bytes the image sent on USART1
         self.serial_sink = None             # extra consumer of those bytes (the pty bridge)
         self.serial_source = None           # polled each ms for bytes to the image
@@ -140,6 +141,8 @@ class Pil:
             while self.now < t_end:
                 self.board.run_until(t_end, {})
                 if self.board.reset_request:
+                    b = self.board
+                    self.resets.append((self.t_s, f"pc=0x{b.ql.arch.regs.pc:08x}", list(b.anomalies)))
                     self.boot(IWDG_RESET_FLAGS)
         finally:
             self.wall_s += time.perf_counter() - wall
@@ -159,7 +162,7 @@ class Pil:
         if self.plant_running and self.plant_next is None:
             # First tick: the plant's t = 10 ms is this SysTick edge; the tick
             # before it ran under the config's [initial] actuators.
-            self._plant_step(self.plant.initial_outputs())
+            self._plant_step(self.outputs())      # the stepper applies [initial] at tick 0
             self.plant_next = b.systick.last + TICK_UNITS
         self._tick_entry = (b.instructions - b.isr_instructions, b.cycles, b.isr_instructions,
                             self._isr_cycles())
@@ -178,10 +181,10 @@ class Pil:
         self._tick_entry = None
 
     def _plant_step(self, outputs):
-        st = self.plant.step(outputs)
+        st, applied = self.plant.step(outputs)
         self.trace.t_s.append(st[0])
         self.trace.state.append(st[1:])
-        self.trace.outputs.append(tuple(outputs))
+        self.trace.outputs.append(applied)
         self.board.adc_counts[:] = self.plant.sensor_counts()
         self.board.dma1.write_conversions()
 
