@@ -14,6 +14,7 @@ def test_900lb_first_seconds_match_leveler_sim(elf):
     trace = pil.run_case(end_s=7.0)                     # the load step is at 5 s
     cmp = case.compare(case.trace_log(trace, config), case.sim_log(config, trace.t_s[-1]))
     assert cmp.rows == 701
+    assert not pil.resets, f"watchdog resets during the run: {pil.resets}"
     assert cmp.mismatched_ticks == 0, f"actuators differ first at {cmp.first_mismatch_s} s"
     assert {"height_before_step_m", "lowest_height_m", "p2_drop_stop_pa"} <= set(cmp.figures)
     assert cmp.events_agree, cmp.figures
