@@ -32,6 +32,7 @@ void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir, int32_t p_spring_pa, i
     a->watch.close_rate_um_s = rate;
     a->watch.close_p_spring_pa = p_spring_pa;
     a->watch.close_line_pa = line_pa;
+    a->watch.still_ms = 0; /* the settle waits for rest seen after the close, not before the move */
 }
 
 /* Halfway from old towards seen, clamped to [lo, hi]; seen outside is ignored (returns old). */

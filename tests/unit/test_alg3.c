@@ -431,6 +431,47 @@ static void test_learns_gap_and_estimates_line_before_breakaway(void **state)
     assert_in_range(set.alg3_gap_pa, (100000 + 62500) / 2, (100000 + 66100) / 2);
 }
 
+/* A burst from rest: the platform starts to creep only after the close (the
+ * rate lags); the settle waits for 1 s at rest seen after the close, so the
+ * creep is seen and the line estimate the burst was aimed at stays trusted. */
+static void test_settle_waits_for_rest_after_close(void **state)
+{
+    (void)state;
+    int32_t h0 = UPPER_UM + 200; /* a small departure above, found after > 1 s at rest: a fine vent */
+    a.watch.end_valid = true;
+    a.watch.end_trusted = true;
+    a.watch.end_dir = -1; /* stopped on the down line at P2_PA */
+    a.watch.end_height_um = h0;
+    a.watch.end_p_spring_pa = P2_PA;
+    for (unsigned i = 0; i < 500 && a.phase != LEVELER_ALG3_VENTING; i++) {
+        hold(h0, 1);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_VENTING);
+    assert_true(a.fine);
+    uint32_t start = now;
+    while (a.phase == LEVELER_ALG3_VENTING && now - start < 1000) {
+        hold(h0, 1);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    assert_in_range(now - start, LEVELER_ALG3_BURST_MS, LEVELER_ALG3_BURST_MS + 20);
+    uint32_t closed = now;
+    hold(h0, 20); /* not moving yet: the platform was at rest before the move, still settling */
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    int32_t h = h0;
+    for (unsigned i = 0; i < 50; i++) { /* creeps 2 mm down at 4 mm/s */
+        h -= 40;
+        hold(h, 1);
+    }
+    while (a.phase == LEVELER_ALG3_SETTLING && now - closed < 5000) {
+        hold(h, 1);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_IDLE);
+    assert_true(now - closed >= 700 + LEVELER_ALG3_SETTLE_REST_MS);
+    assert_true(a.watch.end_trusted); /* it moved: the estimate was right */
+    assert_false(a.retry);
+    assert_int_equal(a.moves, 1);
+}
+
 /* A close on an estimate after which nothing moved forgets the estimate. */
 static void test_failed_estimate_forgotten(void **state)
 {
@@ -559,6 +600,7 @@ int main(void)
         cmocka_unit_test_setup(test_learns_coast, setup),
         cmocka_unit_test_setup(test_learns_gap_and_estimates_line_before_breakaway, setup),
         cmocka_unit_test_setup(test_failed_estimate_forgotten, setup),
+        cmocka_unit_test_setup(test_settle_waits_for_rest_after_close, setup),
         cmocka_unit_test_setup(test_close_rule_against_double, setup),
         cmocka_unit_test_setup(test_filter_against_double, setup),
         cmocka_unit_test_setup(test_saturation, setup),
