@@ -226,7 +226,10 @@ void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_
         w->end_p_spring_pa = p_spring_at_start(a);
     } else if (w->motion != 0 && w->still_ms >= LEVELER_ALG3_REST_MS) {
         bool sealed = a->phase == LEVELER_ALG3_IDLE || a->phase == LEVELER_ALG3_SETTLING;
-        if (learn && sealed) {
+        /* a platform that coasted from a fast close came to rest past its line,
+         * carried by its momentum between the lines: not a point of the line */
+        bool coasted = a->phase == LEVELER_ALG3_SETTLING && w->close_valid;
+        if (learn && sealed && !coasted) {
             line_point(a, set, w->motion, p_spring_pa, learnt, changed);
         }
         w->motion = 0;

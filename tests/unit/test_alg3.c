@@ -472,6 +472,57 @@ static void test_settle_waits_for_rest_after_close(void **state)
     assert_int_equal(a.moves, 1);
 }
 
+/* A vent from 20 mm above the band: P2 falls 100 Pa a tick until the platform
+ * breaks away, then it falls at fall_um_tick until the vent closes, and comes
+ * to rest within 100 ticks with P2 rest_rise_pa over the break-away. Returns
+ * the height at rest; *p_rest the P2 there, *down_at_close the down line
+ * learnt when the vent closed. */
+static int32_t vent_fall_and_rest(int32_t fall_um_tick, int32_t rest_rise_pa, int32_t *p_rest,
+                                  int32_t *down_at_close)
+{
+    int32_t h = UPPER_UM + 20000;
+    int32_t p = 700000;
+    const int32_t p_break = 690000;
+    hold(h, 30);
+    assert_int_equal(a.phase, LEVELER_ALG3_VENTING);
+    while (p > p_break) {
+        p -= 100;
+        tick3(h, p, 101325);
+    }
+    for (unsigned i = 0; i < 1000 && a.phase == LEVELER_ALG3_VENTING; i++) {
+        h -= fall_um_tick;
+        tick3(h, p, 101325);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    *down_at_close = set.alg3_down_pa;
+    *p_rest = p_break + rest_rise_pa;
+    for (int32_t i = 10; i > 0; i--) { /* decelerates to rest */
+        h -= fall_um_tick * i / 11;
+        tick3(h, *p_rest, 101325);
+    }
+    for (unsigned i = 0; i < 200; i++) {
+        tick3(h, *p_rest, 101325);
+    }
+    return h;
+}
+
+/* A fall from a fast close comes to rest past the down line, carried by its
+ * momentum between the lines: its rest is not learnt as a line point. A slow,
+ * quasi-static fall rests on the line: its rest is learnt. */
+static void test_coasted_rest_not_a_line_point(void **state)
+{
+    (void)state;
+    int32_t p_rest, at_breakaway;
+    vent_fall_and_rest(300, 5000, &p_rest, &at_breakaway); /* 30 mm/s at the close */
+    assert_true(at_breakaway != 0); /* learnt at the break-away */
+    assert_int_equal(set.alg3_down_pa, at_breakaway);
+
+    setup(NULL);
+    int32_t h = vent_fall_and_rest(50, 5000, &p_rest, &at_breakaway); /* 5 mm/s: no coast worth the name */
+    int32_t expect = p_rest + (int32_t)lround((TARGET_UM - h) / 1000.0 * set.alg3_line_slope_pa_per_mm);
+    assert_in_range(set.alg3_down_pa, expect - 100, expect + 100);
+}
+
 /* A close on an estimate after which nothing moved forgets the estimate. */
 static void test_failed_estimate_forgotten(void **state)
 {
@@ -601,6 +652,7 @@ int main(void)
         cmocka_unit_test_setup(test_learns_gap_and_estimates_line_before_breakaway, setup),
         cmocka_unit_test_setup(test_failed_estimate_forgotten, setup),
         cmocka_unit_test_setup(test_settle_waits_for_rest_after_close, setup),
+        cmocka_unit_test_setup(test_coasted_rest_not_a_line_point, setup),
         cmocka_unit_test_setup(test_close_rule_against_double, setup),
         cmocka_unit_test_setup(test_filter_against_double, setup),
         cmocka_unit_test_setup(test_saturation, setup),
