@@ -133,15 +133,16 @@ static bool line_point(leveler_alg3 *a, const leveler_settings *set, int8_t dir,
         return false;
     }
     begin(set, learnt, changed);
+    bool same_load = a->watch.lines_valid;
     a->watch.lines_valid = true;
     if (dir > 0) {
         learnt->alg3_up_pa = (int32_t)p;
-        if (learnt->alg3_down_pa >= learnt->alg3_up_pa) {
+        if (!same_load || learnt->alg3_down_pa >= learnt->alg3_up_pa) {
             learnt->alg3_down_pa = 0; /* learnt under another load */
         }
     } else {
         learnt->alg3_down_pa = (int32_t)p;
-        if (learnt->alg3_up_pa != 0 && learnt->alg3_up_pa <= learnt->alg3_down_pa) {
+        if (!same_load || (learnt->alg3_up_pa != 0 && learnt->alg3_up_pa <= learnt->alg3_down_pa)) {
             learnt->alg3_up_pa = 0;
         }
     }

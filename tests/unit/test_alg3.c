@@ -383,6 +383,26 @@ static void test_load_change_forgets_other_line(void **state)
     assert_int_equal(set.alg3_down_pa, 0);
 }
 
+/* The first line point after a load change (lines not valid) forgets the other
+ * line even when it does not cross it: that line was the old load's. A point
+ * under the same load keeps it. */
+static void test_first_point_after_load_change_forgets_other_line(void **state)
+{
+    (void)state;
+    set.alg3_down_pa = 600000; /* under the new up point: no crossing */
+    a.watch.lines_valid = false;
+    stuck_then_climb(LOWER_UM - 20000, 690000, 715000, 40);
+    assert_true(set.alg3_up_pa > 600000);
+    assert_int_equal(set.alg3_down_pa, 0);
+
+    setup(NULL);
+    set.alg3_down_pa = 600000;
+    a.watch.lines_valid = true;
+    stuck_then_climb(LOWER_UM - 20000, 690000, 715000, 40);
+    assert_true(set.alg3_up_pa > 600000);
+    assert_int_equal(set.alg3_down_pa, 600000);
+}
+
 /* Coast learning: time = travel / rate at the close, stiffness = excess / travel;
  * a coast 3x off the learnt stiffness is rejected. */
 static void test_learns_coast(void **state)
@@ -648,6 +668,7 @@ int main(void)
         cmocka_unit_test_setup(test_rejects_implausible_line_points, setup),
         cmocka_unit_test_setup(test_learning_off, setup),
         cmocka_unit_test_setup(test_load_change_forgets_other_line, setup),
+        cmocka_unit_test_setup(test_first_point_after_load_change_forgets_other_line, setup),
         cmocka_unit_test_setup(test_learns_coast, setup),
         cmocka_unit_test_setup(test_learns_gap_and_estimates_line_before_breakaway, setup),
         cmocka_unit_test_setup(test_failed_estimate_forgotten, setup),
