@@ -8,7 +8,7 @@
  *   area            A_nom(y) times a piecewise-linear table over 5 heights
  *   friction        LuGre (bristle state z)
  *   valve_dynamics  first-order opening fractions, Cd falling with pressure ratio
- *   line_delay      a lumped tube volume with a linear (laminar) conductance
+ *   line_delay      a lumped tube volume with a linear (laminar) conductance, the pipe split in two
  *   leak            laminar capillary leak, m = K (P2^2 - Pa^2)
  *   sensor_lag      two cascaded lags on pressure, gain error, offsets
  */
@@ -110,7 +110,8 @@ static void valve_rhs(const plant_fx *f, const double *x, double *dx, const plan
 }
 const plant_fx_ops truth_valve_dynamics_ops = {.rhs = valve_rhs};
 
-/* ---- line_delay: compressor -> tube volume q0 -> laminar conductance q1 -> junction ---- */
+/* ---- line_delay: compressor -> tube volume q0 -> laminar conductance q1 -> junction;
+ * a share q2 of the pipe's own volume sits on the tube's side (the pipe split in two) ---- */
 static void line_init(plant_fx *f)
 {
     f->xe[PLANT_FX_XE_AUX] = f->pl.p.init_p_pipe_pa; /* tube pressure */
@@ -120,8 +121,10 @@ static void line_rhs(const plant_fx *f, const double *x, double *dx, const plant
 {
     const plant *pl = &f->pl;
     double m_line = f->q[1] * (x[PLANT_NX + PLANT_FX_XE_AUX] - x[PLANT_X_P1]);
-    dx[PLANT_NX + PLANT_FX_XE_AUX] = pl->zn * pl->rt * (fl->compressor - m_line) / f->q[0];
+    double v1 = pl->p.pipe_volume_m3;
+    dx[PLANT_NX + PLANT_FX_XE_AUX] = pl->zn * pl->rt * (fl->compressor - m_line) / (f->q[0] + f->q[2] * v1);
     plant_fx_replace_flows(pl, x, dx, fl, m_line, fl->spring_valve, fl->vent_valve);
+    dx[PLANT_X_P1] /= 1.0 - f->q[2];
 }
 const plant_fx_ops truth_line_delay_ops = {.init = line_init, .rhs = line_rhs};
 

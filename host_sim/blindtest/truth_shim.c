@@ -10,9 +10,9 @@ extern const int truth_catalogue_count;
 
 /* As diag_simulate (host_sim/diagnose/diag_shim.c), fx_kind naming a truth variant. */
 int truth_simulate(const char *config_path, int n, const double *t_s, const double *load_n,
-                   const int32_t *commands, int fx_kind, const double *fx_params, const double *init,
-                   double *out, int32_t *cmd_out, char *err, int err_len)
+                   const int32_t *commands, const double *p1_track, int fx_kind, const double *fx_params,
+                   const double *init, double *out, int32_t *cmd_out, char *err, int err_len)
 {
-    return diag_run(truth_catalogue, truth_catalogue_count, config_path, n, t_s, load_n, commands, fx_kind,
-                    fx_params, init, out, cmd_out, err, err_len);
+    return diag_run(truth_catalogue, truth_catalogue_count, config_path, n, t_s, load_n, commands, p1_track,
+                    fx_kind, fx_params, init, out, cmd_out, err, err_len);
 }

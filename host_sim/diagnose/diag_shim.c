@@ -19,7 +19,7 @@
 #include "simloop.h"
 
 /* Version of this ABI; cplant.py refuses a library with another. */
-int diag_abi_version(void) { return 1; }
+int diag_abi_version(void) { return 2; }
 
 /* Loads a config file; 0 or -1 with the loader's file:line message in err. */
 int diag_config_check(const char *path, char *err, int err_len)
@@ -28,17 +28,36 @@ int diag_config_check(const char *path, char *err, int err_len)
     return plant_config_load(path, &cfg, err, (size_t)err_len);
 }
 
+/* Motor speed in balance at pipe pressure p1_pa with the compressor on a
+ * fraction duty of the time (plant_motor_steady_speed); -1 if the config fails. */
+double diag_motor_speed(const char *path, double p1_pa, double duty, char *err, int err_len)
+{
+    static plant_config cfg;
+    if (plant_config_load(path, &cfg, err, (size_t)err_len) != 0)
+        return -1.0;
+    return plant_motor_steady_speed(&cfg.plant, p1_pa, duty);
+}
+
 /* Hooks: the plant with one effect, replayed commands, the run's own loads. */
 static void fx_set_inputs(void *f, const plant_inputs *in) { plant_fx_set_inputs(f, in); }
 static void fx_advance(void *f, double dt_s, int substeps) { plant_fx_advance(f, dt_s, substeps); }
 static void fx_sensed(const void *f, double out[4]) { plant_fx_sensed(f, out); }
 static const sim_plant_ops fx_plant = {fx_set_inputs, fx_advance, fx_sensed};
 
+typedef struct {
+    const int32_t *commands;
+    const double *p1_track;
+    const plant_fx *f;
+} replay_ctx;
+
 static void replay_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT])
 {
-    const int32_t *c = (const int32_t *)user + 4 * s->k;
+    const replay_ctx *r = user;
+    const int32_t *c = r->commands + 4 * s->k;
     memset(out, 0, HAL_OUT_COUNT * sizeof out[0]);
     out[HAL_OUT_COMPRESSOR] = c[0] != 0;
+    if (r->p1_track && isfinite(r->p1_track[s->k]))
+        out[HAL_OUT_COMPRESSOR] = r->f->pl.x[PLANT_X_P1] < r->p1_track[s->k];
     out[HAL_OUT_SPRING_VALVE] = c[1] != 0;
     out[HAL_OUT_VENT_VALVE] = c[2] != 0;
     out[HAL_OUT_ACC_VALVE] = c[3] != 0;
@@ -61,6 +80,8 @@ static plant_params initial_params(const plant_config *cfg, const double *init)
             p.init_p_spring_pa = init[1];
         if (isfinite(init[2]))
             p.init_p_pipe_pa = init[2];
+        if (isfinite(init[4]))
+            p.init_motor_speed_rad_per_s = init[4];
         p.init_velocity_m_per_s = 0.0;
     }
     return p;
@@ -88,8 +109,12 @@ static int check_time_base(int n, const double *t_s, bool closed, char *err, int
  *   n, t_s, load_n   the run's time base and load schedule (load for the interval from t_s[i])
  *   commands         n x 4 (compressor, spring_valve, vent_valve, acc_valve) to replay, or NULL for the
  *                    firmware in the loop (then t_s must be the 10 ms tick grid from 0)
+ *   p1_track         replay only, may be NULL: where finite, the compressor runs while the
+ *                    plant's P1 is below it instead of as logged (a log whose compressor
+ *                    chatters faster than it samples: the replay regulates as the rig did)
  *   fx_kind, fx_params  effect id (effects.json; 0 = none), PLANT_FX_MAX_PARAMS doubles
- *   init             height m, P2, P1 Pa at t_s[0]; NaN = the config's. Given (even all
+ *   init             height m, P2, P1, P3 Pa, motor speed rad/s at t_s[0]; NaN = the
+ *                    config's (P3 only with an accumulator). Given (even all
  *                    NaN), the platform starts at rest and, closed loop, the firmware
  *                    decides from the first tick; NULL = the config's initial state
  *                    whole, its velocity and [initial] actuators included (leveler-sim)
@@ -98,16 +123,16 @@ static int check_time_base(int n, const double *t_s, bool closed, char *err, int
  * Returns 0, or -1 with a message in err.
  */
 int diag_simulate(const char *config_path, int n, const double *t_s, const double *load_n,
-                  const int32_t *commands, int fx_kind, const double *fx_params, const double *init,
-                  double *out, int32_t *cmd_out, char *err, int err_len)
+                  const int32_t *commands, const double *p1_track, int fx_kind, const double *fx_params,
+                  const double *init, double *out, int32_t *cmd_out, char *err, int err_len)
 {
-    return diag_run(plant_fx_catalogue, plant_fx_catalogue_count, config_path, n, t_s, load_n, commands, fx_kind,
-                    fx_params, init, out, cmd_out, err, err_len);
+    return diag_run(plant_fx_catalogue, plant_fx_catalogue_count, config_path, n, t_s, load_n, commands, p1_track,
+                    fx_kind, fx_params, init, out, cmd_out, err, err_len);
 }
 
 int diag_run(const plant_fx_model *table, int table_count, const char *config_path, int n, const double *t_s,
-             const double *load_n, const int32_t *commands, int fx_kind, const double *fx_params,
-             const double *init, double *out, int32_t *cmd_out, char *err, int err_len)
+             const double *load_n, const int32_t *commands, const double *p1_track, int fx_kind,
+             const double *fx_params, const double *init, double *out, int32_t *cmd_out, char *err, int err_len)
 {
     const plant_fx_model *model = plant_fx_find(table, table_count, fx_kind);
     if (fx_kind != 0 && !model) {
@@ -130,16 +155,21 @@ int diag_run(const plant_fx_model *table, int table_count, const char *config_pa
         snprintf(err, (size_t)err_len, "effect %s: a parameter is outside its range", model->name);
         return -1;
     }
+    if (init && isfinite(init[3]) && p.acc_type != PLANT_ACC_NONE)
+        f.pl.x[PLANT_X_P3] = init[3]; /* the accumulator's volume follows from P3 */
     if (closed && sim_firmware_start(&cfg, cfg.algorithm, err, (size_t)err_len) != 0)
         return -1;
     /* From the config's own initial state (a rig already running, as
      * leveler-sim starts): the first tick under its [initial] actuators, the
      * firmware's first decision at its end. From a given state (init: a log's
-     * first state, at rest) the firmware decides from the first tick. No
-     * sensor noise: the blind test adds noise to the logged values itself. */
+     * first state, at rest) the firmware decides from the first tick. The
+     * firmware reads the config's sensor noise, seeded (a rig's chatter). */
+    static plant_rng rng;
+    plant_rng_seed(&rng, cfg.sensors.noise_seed);
+    replay_ctx replay = {commands, p1_track, &f};
     sim_stepper st = {.cfg = &cfg, .plant = &f, .ops = &fx_plant,
                       .commands = closed ? sim_firmware_commands : replay_commands,
-                      .commands_user = (void *)commands, .load = logged_load, .load_user = (void *)load_n,
+                      .commands_user = &replay, .load = logged_load, .load_user = (void *)load_n, .rng = &rng,
                       .initial_outputs = closed && !init, .times_s = t_s, .n_times = (size_t)n};
     sim_stepper_start(&st);
     for (int i = 0; i < n; i++) {

@@ -78,6 +78,8 @@ void plant_fx_advance(plant_fx *f, double dt_s, int substeps)
     if (!f->model) {
         plant_advance(&f->pl, dt_s, substeps);
     } else {
+        if (f->model->ops->substeps)
+            substeps = f->model->ops->substeps(f, dt_s, substeps);
         if (substeps < 1)
             substeps = 1;
         for (int i = 0; i < substeps; i++)

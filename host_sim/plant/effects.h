@@ -43,6 +43,8 @@ typedef struct {
     void (*after_tick)(plant_fx *f, const double raw[4], double dt_s, bool first);
     /* what the transducers report, from the filtered values in out */
     void (*sensed)(const plant_fx *f, double out[4]);
+    /* RK4 substeps over dt_s that keep a stiff extension stable (at least the given) */
+    int (*substeps)(const plant_fx *f, double dt_s, int substeps);
 } plant_fx_ops;
 
 /* One catalogued effect. */

@@ -7,7 +7,8 @@
  *                   a1 rel/m, a2 rel/m^2, a0 relative
  *   friction        Coulomb N, Stribeck N, Stribeck velocity m/s
  *   valve_dynamics  open delay s, close delay s, ISO 6358 b (0 = eq. 8), outflow C scale
- *   line_delay      transport delay s, dead volume of the tube added at the junction m^3
+ *   line_delay      transport delay s, junction volume change m^3, tube volume behind a laminar
+ *                   resistance m^3, that resistance as the tube's time constant s
  *   leak            orifice area m^2 (Cd 1), spring -> ambient
  *   sensor_lag      pressure lag s, height lag s, P2 offset Pa, height offset m
  */
@@ -94,13 +95,41 @@ static void valve_rhs(const plant_fx *f, const double *x, double *dx, const plan
 const plant_fx_ops fx_valve_dynamics_ops = {.inputs = valve_inputs, .rhs = valve_rhs};
 
 /* ---- line_delay: the compressor's flow reaches the junction after the
- * transport delay q0; the tube adds its dead volume q1 to the junction ---- */
+ * transport delay q0, through a tube of volume q2 behind a laminar resistance
+ * (its filling time constant q3); q1 changes the junction's volume (negative:
+ * part of the pipe sits behind the resistance, a pipe split in two) ---- */
+static void line_init(plant_fx *f) { f->xe[PLANT_FX_XE_AUX] = f->pl.p.init_p_pipe_pa; }
+
+/* The junction keeps at least a fifth of the pipe's volume. */
+static double line_junction_m3(const plant_fx *f)
+{
+    double v1 = f->pl.p.pipe_volume_m3;
+    return fmax(v1 + f->q[1], 0.2 * v1);
+}
+
 static void line_rhs(const plant_fx *f, const double *x, double *dx, const plant_flows *fl)
 {
+    const plant *pl = &f->pl;
     double m_c = f->q[0] > 0.0 ? f->mc_delayed : fl->compressor;
-    plant_fx_replace_flows(&f->pl, x, dx, fl, m_c, fl->spring_valve, fl->vent_valve);
-    double v1 = f->pl.p.pipe_volume_m3;
-    dx[PLANT_X_P1] *= v1 / (v1 + f->q[1]);
+    if (f->q[2] > 0.0) {
+        double tau = fmax(f->q[3], 1e-3);
+        double m_line = f->q[2] / (pl->zn * pl->rt * tau) * (x[PLANT_NX + PLANT_FX_XE_AUX] - x[PLANT_X_P1]);
+        dx[PLANT_NX + PLANT_FX_XE_AUX] = pl->zn * pl->rt * (m_c - m_line) / f->q[2];
+        m_c = m_line;
+    }
+    plant_fx_replace_flows(pl, x, dx, fl, m_c, fl->spring_valve, fl->vent_valve);
+    dx[PLANT_X_P1] *= pl->p.pipe_volume_m3 / line_junction_m3(f);
+}
+
+/* Substeps that keep RK4 stable on the tube: its fastest mode decays at
+ * (1 + Vt/Vj)/tau, kept below 1.5 per substep. */
+static int line_substeps(const plant_fx *f, double dt_s, int substeps)
+{
+    if (!(f->q[2] > 0.0))
+        return substeps;
+    double rate = (1.0 + f->q[2] / line_junction_m3(f)) / fmax(f->q[3], 1e-3);
+    int need = (int)ceil(dt_s * rate / 1.5);
+    return need > substeps ? (need < 400 ? need : 400) : substeps;
 }
 
 /* The compressor flow of this tick, read back delay/dt ticks later. */
@@ -118,7 +147,8 @@ static void line_after_tick(plant_fx *f, const double raw[4], double dt_s, bool 
     f->mc_buf[f->mc_head] = fl.compressor;
     f->mc_delayed = f->mc_buf[(f->mc_head - d + PLANT_FX_DELAY_TICKS) % PLANT_FX_DELAY_TICKS];
 }
-const plant_fx_ops fx_line_delay_ops = {.rhs = line_rhs, .after_tick = line_after_tick};
+const plant_fx_ops fx_line_delay_ops = {.init = line_init, .rhs = line_rhs, .after_tick = line_after_tick,
+                                        .substeps = line_substeps};
 
 /* ---- leak: an orifice (eq. 8/9) spring -> ambient ---- */
 static void leak_rhs(const plant_fx *f, const double *x, double *dx, const plant_flows *fl)

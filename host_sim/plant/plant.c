@@ -104,6 +104,15 @@ double plant_orifice_flow(const plant *pl, double cd_area_m2, double pu_pa, doub
     return cd_area_m2 * pl->flow_subsonic * pu_pa * r_inv_k * sqrt(1.0 - r_km1_k);
 }
 
+double plant_motor_steady_speed(const plant_params *p, double p1_pa, double duty)
+{
+    double drive = duty * p->motor_torque_constant_nm_per_v * p->motor_supply_v;
+    double load = p->motor_torque_coefficient * p->compressor_capacity_m3_per_rad * (p1_pa - p->ambient_pa);
+    if (!(p->motor_damping_nm_s > 0.0) || drive <= load)
+        return 0.0;
+    return (drive - load) / p->motor_damping_nm_s;
+}
+
 void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PLANT_NX], plant_flows *flows)
 {
     const plant_params *p = &pl->p;

@@ -323,6 +323,8 @@ def _excursion(t, h_raw, h_s, p2_raw, event, window_end, direction, tol, opts):
     # Pass 2: the same around that level, which noise does not bias.
     tt = t[lo:hi]
     near = np.flatnonzero(y[:search_end] <= y_ext + tol)
+    if not near.size:                 # NaN heights (a failed simulation): no resting level
+        return None
     rest = slice(lo + int(near[0]), lo + int(near[-1]) + 1)
     ex.level_m = _clean(np.median(h_raw[rest]))
     y_ref = max(sgn * ex.level_m, y_ext)

@@ -73,6 +73,7 @@ static void test_every_kind_stays_finite(void **state)
         {false, FRICTION, {100.0, 50.0, 0.005}},
         {false, VALVE_DYNAMICS, {0.1, 0.2, 0.3, 0.8}},
         {false, LINE_DELAY, {0.2, 3e-4}},
+        {false, LINE_DELAY, {0.1, -1.5e-4, 1e-3, 0.01}}, /* stiffest corner: a big tube, a fast resistance */
         {false, LEAK, {2e-8}},
         {false, SENSOR_LAG, {0.3, 0.1, 2000.0, 0.001}},
         {true, THERMAL, {8.0, 300.0, 10.0}},
@@ -80,6 +81,7 @@ static void test_every_kind_stays_finite(void **state)
         {true, FRICTION, {100.0, 60.0, 0.004, 2e5, 2000.0}},
         {true, VALVE_DYNAMICS, {0.1, 0.15, 0.3, 0.8}},
         {true, LINE_DELAY, {3e-4, 1e-8}},
+        {true, LINE_DELAY, {1e-4, 1e-8, 0.6}},
         {true, LEAK, {1e-16}},
         {true, SENSOR_LAG, {0.3, 0.15, 0.1, 3000.0, 0.005, 5e-4}},
     };
@@ -120,6 +122,26 @@ static void test_off_is_the_nominal_plant(void **state)
         for (int s = 0; s < PLANT_NX; s++)
             assert_true(f.pl.x[s] == ref.x[s]);
     }
+}
+
+/* The line candidate's tube behind a resistance and the truth generator's tube
+ * behind a laminar conductance are two codings of one physics: the same tube
+ * (volume V, conductance G = V / (Z n R T tau)) must give the same plant. */
+static void test_line_tube_matches_the_truth_tube(void **state)
+{
+    (void)state;
+    plant_params p = thesis();
+    const double vol = 2e-4, g = 1e-8;
+    static plant_fx cand, tr;
+    const double tp[PLANT_FX_MAX_PARAMS] = {vol, g, 0.0};
+    assert_int_equal(plant_fx_init(&tr, &p, truth(LINE_DELAY), tp), 0);
+    const double cp[PLANT_FX_MAX_PARAMS] = {0.0, 0.0, vol, vol / (tr.pl.zn * tr.pl.rt * g)};
+    assert_int_equal(plant_fx_init(&cand, &p, candidate(LINE_DELAY), cp), 0);
+    cycle(&cand);
+    cycle(&tr);
+    assert_true(fabs(cand.pl.x[PLANT_X_P1] - tr.pl.x[PLANT_X_P1]) < 1e-6 * tr.pl.x[PLANT_X_P1]);
+    assert_true(fabs(cand.pl.x[PLANT_X_P2] - tr.pl.x[PLANT_X_P2]) < 1e-6 * tr.pl.x[PLANT_X_P2]);
+    assert_true(fabs(cand.pl.x[PLANT_X_Y] - tr.pl.x[PLANT_X_Y]) < 1e-9);
 }
 
 static void test_out_of_range_is_refused(void **state)
@@ -164,6 +186,7 @@ int main(void)
         cmocka_unit_test(test_every_kind_stays_finite),
         cmocka_unit_test(test_off_is_the_nominal_plant),
         cmocka_unit_test(test_out_of_range_is_refused),
+        cmocka_unit_test(test_line_tube_matches_the_truth_tube),
         cmocka_unit_test(test_leak_empties_and_closed_plant_keeps_mass),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -2,6 +2,7 @@
 import json
 import os
 
+import numpy as np
 import pytest
 
 from leveler import thesis
@@ -50,6 +51,26 @@ def test_the_shipped_thesis_file_is_the_readme_table():
     f = by_name["thesis-900lb-exp"]["features"]
     assert f["lowest_height_m"] == pytest.approx(14.6 * 0.0254)
     assert f["time_stuck_bottom_s"] == 19
+
+
+ACCUMULATOR = os.path.join(os.path.dirname(THESIS), "thesis-accumulator.json")
+
+
+def test_the_shipped_accumulator_file_is_the_readme_list(cplant):
+    with open(ACCUMULATOR) as fh:
+        doc = json.load(fh)
+    by_name = {r["name"]: r for r in doc["runs"]}
+    # README: 90 psig drop to 14.9 in; 112 psig return in about 2 s; 1000 lb 100 psig 14.82 in, 2.5 s
+    assert by_name["thesis-900lb-acc90psig-exp"]["features"]["lowest_height_m"] == pytest.approx(14.9 * 0.0254)
+    assert by_name["thesis-900lb-acc112psig-exp"]["features"]["time_return_after_step_s"] == 2.0
+    f = by_name["thesis-1000lb-acc100psig-exp"]["features"]
+    assert f["lowest_height_m"] == pytest.approx(14.82 * 0.0254) and f["time_return_after_step_s"] == 2.5
+    # each run's config starts the accumulator at the charge its case names (the C plant's word)
+    t = np.round(np.arange(0.0, 0.05, 0.01), 2)
+    for name, r in by_name.items():
+        assert r["config"].split("lb")[0] in name
+        tr = cplant.generate(r["config"], t, np.full(len(t), 4000.0), None, [])
+        assert tr.signals["p_acc_pa"][0] == pytest.approx(thesis.ACCUMULATOR_CHARGE_PA[name], abs=1.0)
 
 
 def test_features_run_end_to_end(cplant, tmp_path, capsys):

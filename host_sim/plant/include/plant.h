@@ -245,6 +245,10 @@ void plant_diaphragm_volume(const plant_params *p, double p3_pa, double *v_m3, d
 double plant_acc_volume_m3(const plant *pl);
 /* Orifice mass flow (eq. 8/9 with exponent 1/k), kg/s, from pu to pd (pu >= pd). */
 double plant_orifice_flow(const plant *pl, double cd_area_m2, double pu_pa, double pd_pa);
+/* Motor speed where the torques balance (eq. 3 with d omega/dt = 0) with the
+ * compressor switched on a fraction `duty` of the time (switching much faster
+ * than the motor's J/D): 0 when the pipe pressure stalls it. */
+double plant_motor_steady_speed(const plant_params *p, double p1_pa, double duty);
 
 /* ---- sensors ---- */
 

@@ -34,6 +34,9 @@ def parse_args(argv):
                     help="comma-separated candidates (default: all seven)")
     ap.add_argument("--jobs", type=int, default=None, help="parallel processes (default: 2)")
     ap.add_argument("--fast", action="store_true", help="smaller fitting budget (blind-test CTest)")
+    ap.add_argument("--design", metavar="A,B", default=None,
+                    help="propose the experiment that best tells candidate A from B (done anyway "
+                         "for candidates the logs cannot tell apart); written to DIR/experiment.csv")
     ap.add_argument("--quiet", action="store_true", help="no progress output")
     ap.add_argument("--simulator", default=None, help=argparse.SUPPRESS)   # tests: module:factory
     a = ap.parse_args(argv)
@@ -52,7 +55,7 @@ def main(argv=None):
         return 2
 
 
-OUT_FILES = ("diagnosis.json", "report.html")   # all that leveler-diagnose writes into --out
+OUT_FILES = ("diagnosis.json", "report.html", "experiment.csv")   # all leveler-diagnose writes into --out
 
 
 def prepare_out(out):
@@ -101,7 +104,13 @@ def diagnose_into(a, say, tmp, out):
     for c in candidates:
         if c not in fx.NAMES:
             raise DiagnoseInputError(f"--effects: unknown effect {c!r} (known: {', '.join(fx.NAMES)})")
+    pair = None
+    if a.design:
+        pair = [c.strip() for c in a.design.split(",")]
+        if len(pair) != 2 or any(c not in candidates for c in pair):
+            raise DiagnoseInputError(f"--design: expected two of the fitted candidates, A,B (got {a.design!r})")
     sim = model.make_simulator(a.simulator)
+
     def check(config):
         if hasattr(sim, "check_config"):
             sim.check_config(config)          # exists and loads (file:line errors)
@@ -128,9 +137,13 @@ def diagnose_into(a, say, tmp, out):
                                          f"vent_valve columns filled in")
     result, traces = pipeline.diagnose(a.simulator, sim, a.config, calib, holdout, mode, candidates,
                                        a.jobs, say,
-                                       {"starts": 8, "max_nfev": 15, "polish": 1} if a.fast else None)
+                                       {"starts": 8, "max_nfev": 15, "polish": 1} if a.fast else None,
+                                       pair)
     report.write_json(os.path.join(tmp, OUT_FILES[0]), result)
     report.write_html(os.path.join(tmp, OUT_FILES[1]), result, traces)
+    if result.get("experiment"):
+        from . import design
+        design.write_schedule(os.path.join(tmp, OUT_FILES[2]), result["experiment"])
     publish_out(tmp, out)
     say(f"effect: {result['effect']}; held-out shrink {result['shrink_pct']:.1f}%; "
         f"{result['seconds']:.1f} s; wrote {out}/diagnosis.json and report.html")

@@ -17,7 +17,7 @@ from .model import CLOSED_LOOP, Simulator, Trace
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 CONFIG_DIR = os.path.join(ROOT, "host_sim", "configs")
-ABI = 1
+ABI = 2
 MAX_PARAMS = 8
 SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
 COMMANDS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
@@ -77,31 +77,119 @@ def _iptr(a):
     return a.ctypes.data_as(ctypes.POINTER(ctypes.c_int32))
 
 
-def initial_state(run):
-    """Height, P2, P1 at the start: averaged over the quiet start of the run
-    (before the first load change or actuator switch, at most 2 s), so sensor
-    noise does not become an initial-state error."""
+QUIET_MAX_S = 2.0       # the quiet start: at most this long
+DUTY_WINDOW_S = 1.0     # compressor duty at the start, for the motor speed
+FINE_TICK_S = 0.01      # replay grid for coarse or jittered logs
+CHATTER_SWITCHES = 4    # compressor switches within a second that make a stretch "chatter"
+CHATTER_SMOOTH_S = 0.1  # the P1 a chattering stretch regulates to: logged P1 averaged over +-this
+OMEGA_WINDOW_S = 3.0    # the motor speed is fitted to P1 over at most this long
+
+
+def _quiet_end(run):
+    """Index where the quiet start ends: the first load change or valve switch
+    (at most QUIET_MAX_S). Compressor switching does not end it: with
+    algorithm 2 at the accumulator's charge limit it may switch every tick."""
     t = run.t_s
-    end = np.searchsorted(t, t[0] + 2.0)
+    end = int(np.searchsorted(t, t[0] + QUIET_MAX_S))
     changes = [np.flatnonzero(np.abs(np.diff(run.load_n)) > 1.0)]
-    changes += [np.flatnonzero(np.diff(v) != 0) for v in run.commands.values()]
+    changes += [np.flatnonzero(np.diff(v) != 0) for k, v in run.commands.items() if k != "compressor"]
     for c in changes:
         if c.size:
             end = min(end, int(c[0]) + 1)
-    end = max(end, 1)
-    out = []
-    for sig in ("height_m", "p_spring_pa", "p_pipe_pa"):
-        v = run.signals[sig][:end]
-        v = v[np.isfinite(v)]
-        out.append(float(np.mean(v)) if v.size else np.nan)
-    return out
+    return max(end, 1)
+
+
+def _start_value(t, v, end, trend):
+    """Value at t[0] from the quiet start: the mean, or with `trend` the intercept
+    of a straight line (a pipe the compressor fills while the valves are shut)."""
+    ok = np.isfinite(v[:end])
+    if not ok.any():
+        return np.nan
+    tt, vv = t[:end][ok], v[:end][ok]
+    if trend and len(vv) >= 8 and np.ptp(tt) > 0:
+        slope, icpt = np.polyfit(tt - t[0], vv, 1)
+        return float(icpt)
+    return float(np.mean(vv))
+
+
+def initial_state(run):
+    """Height, P2, P1, P3 at the start, averaged over the quiet start so sensor
+    noise does not become an initial-state error, and the compressor's duty
+    over the first second (the motor speed is never logged). A P1 column that
+    is empty takes P3 when the accumulator valve is open, else P2 (the pipe
+    equalises with what it is open to)."""
+    t, end = run.t_s, _quiet_end(run)
+    sig = run.signals
+    h = _start_value(t, sig["height_m"], end, False)
+    p2 = _start_value(t, sig["p_spring_pa"], end, False)
+    p3 = _start_value(t, sig.get("p_acc_pa", np.full(len(t), np.nan)), end, True)
+    p1 = _start_value(t, sig["p_pipe_pa"], end, True)
+    acc_open = bool(run.commands.get("acc_valve", np.zeros(1))[0]) if run.commands else False
+    if not np.isfinite(p1):
+        p1 = p3 if acc_open and np.isfinite(p3) else p2
+    comp = run.commands.get("compressor") if run.commands else None
+    duty = 0.0
+    if comp is not None and len(comp):
+        n = max(1, int(np.searchsorted(t, t[0] + DUTY_WINDOW_S)))
+        duty = float(np.mean(np.asarray(comp[:n]) != 0))
+    return [h, p2, p1, p3], duty
+
+
+def nearest_index(rel, grid):
+    """For each grid time the index of the nearest sample of rel: a switch seen
+    between two samples is placed halfway between them (an edge is only known
+    within a sample)."""
+    idx = np.clip(np.searchsorted(rel, grid), 0, len(rel) - 1)
+    prev = np.clip(idx - 1, 0, len(rel) - 1)
+    nearer_prev = np.abs(grid - rel[prev]) <= np.abs(rel[idx] - grid)
+    idx = np.where(nearer_prev, prev, idx)
+    return idx
+
+
+def _window_counts(t, events, half):
+    """For each time in t: how many of the sorted event times lie within +-half."""
+    return np.searchsorted(events, t + half) - np.searchsorted(events, t - half)
+
+
+def chatter_track(run):
+    """Where the logged compressor chatters (CHATTER_SWITCHES or more switches within
+    a second: algorithm 2 at the accumulator's charge limit, where sensor noise alone
+    flips the rule), the P1 the replay's compressor regulates to: the logged P1
+    averaged over +-CHATTER_SMOOTH_S. A log slower than the chatter does not hold its
+    pattern, and replaying the samples open loop would integrate the wrong duty into
+    the pipe (the rig's loop corrects it). None elsewhere. Used for logs slower than
+    the tick only: a tick-rate log holds every switch, and its exact replay beats
+    regulating (measured on the blind test's accumulator logs)."""
+    comp = run.commands.get("compressor") if run.commands else None
+    p1 = run.signals.get("p_pipe_pa")
+    if comp is None or p1 is None or not np.isfinite(p1).mean() > 0.5:
+        return None
+    t = run.t_s
+    t_sw = t[1:][np.diff(np.asarray(comp, dtype=int)) != 0]
+    chatter = _window_counts(t, t_sw, 0.5) >= CHATTER_SWITCHES
+    if not chatter.any():
+        return None
+    ok = np.isfinite(p1)
+    csum = np.concatenate([[0.0], np.cumsum(np.where(ok, p1, 0.0))])
+    cnt = np.concatenate([[0], np.cumsum(ok)])
+    lo = np.searchsorted(t, t - CHATTER_SMOOTH_S)
+    hi = np.searchsorted(t, t + CHATTER_SMOOTH_S, side="right")
+    n = cnt[hi] - cnt[lo]
+    smooth = np.where(n > 0, (csum[hi] - csum[lo]) / np.maximum(n, 1), np.nan)
+    return np.where(chatter, smooth, np.nan)
+
+
+def is_fine(t_s, tick=FINE_TICK_S):
+    rel = t_s - t_s[0]
+    return len(rel) > 1 and np.allclose(np.diff(rel), tick, atol=1e-6)
 
 
 def _bind(f):
     """diag_simulate's signature (truth_simulate has the same)."""
     f.restype = ctypes.c_int
     f.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double),
-                  ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32), ctypes.c_int,
+                  ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32),
+                  ctypes.POINTER(ctypes.c_double), ctypes.c_int,
                   ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
                   ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32),
                   ctypes.c_char_p, ctypes.c_int]
@@ -115,6 +203,11 @@ class CPlant(Simulator):
             raise DiagnoseInputError("libleveler_diag.so has another ABI version; rebuild it")
         self.simulate_fn = _bind(self.lib.diag_simulate)
         self.truth_fn = None   # the blind test's truth library, loaded when generate() is first called
+        self.lib.diag_motor_speed.restype = ctypes.c_double
+        self.lib.diag_motor_speed.argtypes = [ctypes.c_char_p, ctypes.c_double, ctypes.c_double,
+                                              ctypes.c_char_p, ctypes.c_int]
+        self._motor_cache = {}
+        self._omega_cache = {}
         self.lib.diag_config_check.restype = ctypes.c_int
         self.lib.diag_config_check.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_int]
 
@@ -131,7 +224,7 @@ class CPlant(Simulator):
         if self.lib.diag_config_check(path.encode(), err, len(err)) != 0:
             raise DiagnoseInputError(err.value.decode(errors="replace"))
 
-    def _call(self, config, t_s, load_n, commands, kind, values, init, fn=None):
+    def _call(self, config, t_s, load_n, commands, kind, values, init, track=None, fn=None):
         n = len(t_s)
         t = np.ascontiguousarray(t_s, dtype=np.float64)
         load = np.ascontiguousarray(load_n, dtype=np.float64)
@@ -144,14 +237,75 @@ class CPlant(Simulator):
         if commands is not None:
             cmd = np.ascontiguousarray(np.stack([commands.get(c, np.zeros(n)) for c in COMMANDS], axis=1),
                                        dtype=np.int32)
+        trk = None if track is None else np.ascontiguousarray(track, dtype=np.float64)
         err = ctypes.create_string_buffer(512)
         rc = (fn or self.simulate_fn)(config_path(config).encode(), n, _dptr(t), _dptr(load),
-                                    None if cmd is None else _iptr(cmd), kind, _dptr(p), _dptr(ini),
+                                      None if cmd is None else _iptr(cmd), None if trk is None else _dptr(trk),
+                                      kind, _dptr(p), _dptr(ini),
                                     _dptr(out), _iptr(cmd_out), err, len(err))
         if rc != 0:
             raise RuntimeError(f"C plant: {err.value.decode(errors='replace')}")
         return Trace(t, {s: out[:, i].copy() for i, s in enumerate(SIGNALS)},
                      {c: cmd_out[:, i].copy() for i, c in enumerate(COMMANDS)})
+
+    def motor_speed(self, config, p1_pa, duty):
+        """The motor speed in balance at the start (plant_motor_steady_speed)."""
+        key = (config, round(float(p1_pa), 0), round(duty, 3))
+        if key not in self._motor_cache:
+            err = ctypes.create_string_buffer(512)
+            w = self.lib.diag_motor_speed(config_path(config).encode(), float(p1_pa), float(duty), err, len(err))
+            if w < 0.0:
+                raise RuntimeError(f"C plant: {err.value.decode(errors='replace')}")
+            self._motor_cache[key] = w
+        return self._motor_cache[key]
+
+    def start_motor_speed(self, config, run, init, duty):
+        """The motor speed at the log's start, which no log holds, and a correction
+        of the starting P1. With the compressor switched on in the first seconds and
+        P1 logged, both are fitted to how P1 moves there: the nominal plant replayed
+        with the logged commands over the first OMEGA_WINDOW_S (up to the first load
+        change) for a grid of speeds, each with the constant shift of P1 that fits
+        best, refined by a parabola. Otherwise the speed in balance for the
+        compressor's duty (0 when it is off: a motor at rest). Returns (speed, shift)."""
+        comp = run.commands.get("compressor") if run.commands else None
+        key = (config, run.path, hash(run.signals["p_pipe_pa"].tobytes()),
+               None if comp is None else hash(np.asarray(comp).tobytes()))
+        if key in self._omega_cache:
+            return self._omega_cache[key]
+        out = (self.motor_speed(config, init[2], duty) if np.isfinite(init[2]) else 0.0, 0.0)
+        t = run.t_s
+        n = int(np.searchsorted(t, t[0] + OMEGA_WINDOW_S))
+        load_change = np.flatnonzero(np.abs(np.diff(run.load_n[:n])) > 1.0)
+        n = int(load_change[0]) + 1 if load_change.size else n
+        p1 = run.signals["p_pipe_pa"][:n]
+        if comp is not None and np.any(comp[:n]) and np.isfinite(p1).sum() > 10 and n > 10:
+            grid = np.linspace(0.0, max(self.motor_speed(config, init[2], 1.0), 1.0) * 1.5, 13)
+            cmds = {k: np.asarray(v[:n]) for k, v in run.commands.items()}
+            cost, shift = [], []
+            for w in grid:
+                r = self._call(config, t[:n], run.load_n[:n], cmds, 0, [], init + [w]).signals["p_pipe_pa"] - p1
+                shift.append(-float(np.nanmean(r)))
+                cost.append(float(np.nanvar(r)))
+            k = int(np.argmin(cost))
+            step = 0.0
+            if 0 < k < len(grid) - 1:
+                den = cost[k - 1] - 2 * cost[k] + cost[k + 1]
+                step = 0.5 * (cost[k - 1] - cost[k + 1]) / den if den > 0 else 0.0
+            out = (float(grid[k] + step * (grid[1] - grid[0])), shift[k])
+        self._omega_cache[key] = out
+        return out
+
+    def start_state(self, config, run, effect=None, params=None):
+        """The 5 initial values diag_simulate takes, estimated from the log."""
+        init, duty = initial_state(run)
+        omega, p1_shift = self.start_motor_speed(config, run, list(init), duty)
+        init[2] += p1_shift
+        params = params or {}
+        if effect == "sensor_lag":
+            # the log shows what the transducers read: the plant started at reading - offset
+            init[0] -= params.get("h_offset_m", 0.0)
+            init[1] -= params.get("p_offset_pa", 0.0)
+        return init + [omega]
 
     def simulate(self, config, run, effect, params, mode):
         if effect:
@@ -160,14 +314,26 @@ class CPlant(Simulator):
             kind = e.effect_id
         else:
             values, kind = [], 0
-        init = initial_state(run)
-        if effect == "sensor_lag":
-            # the log shows what the transducers read: the plant started at reading - offset
-            init[0] -= params.get("h_offset_m", 0.0)
-            init[1] -= params.get("p_offset_pa", 0.0)
-        if mode != CLOSED_LOOP:
+        init = self.start_state(config, run, effect, params)
+        if mode == CLOSED_LOOP:
+            return self._closed_loop(config, run.t_s, run.load_n, kind, values, init)
+        if is_fine(run.t_s):      # the tick's own log: every switch is there, replayed as is
             return self._call(config, run.t_s, run.load_n, run.commands, kind, values, init)
-        return self._closed_loop(config, run.t_s, run.load_n, kind, values, init)
+        return self._replay_fine(config, run, kind, values, init, chatter_track(run))
+
+    def _replay_fine(self, config, run, kind, values, init, track=None):
+        """A coarse or jittered log: replay on the 10 ms grid with each switch halfway
+        between the samples that bracket it, read back at the log's times."""
+        rel = run.t_s - run.t_s[0]
+        grid = np.round(np.arange(0.0, rel[-1] + FINE_TICK_S / 2, FINE_TICK_S), 6)
+        idx = nearest_index(rel, grid)
+        cmds = {k: np.asarray(v)[idx] for k, v in run.commands.items()}
+        if track is not None:
+            track = track[idx]      # the nearest sample's (already smoothed) value
+        tr = self._call(config, grid, np.asarray(run.load_n)[idx], cmds, kind, values, init, track)
+        back = nearest_index(grid, rel)
+        return Trace(run.t_s, {k: np.interp(rel, grid, v) for k, v in tr.signals.items()},
+                     {k: v[back] for k, v in tr.commands.items()})
 
     def _closed_loop(self, config, t_s, load_n, kind, values, init, fn=None):
         """The firmware ticks every 10 ms: simulate on that grid from the log's first
@@ -175,19 +341,20 @@ class CPlant(Simulator):
         tick = 0.01
         rel = t_s - t_s[0]
         if len(rel) > 1 and np.allclose(np.diff(rel), tick, atol=1e-6) and abs(rel[0]) < 1e-9:
-            return self._call(config, np.round(rel, 2), load_n, None, kind, values, init, fn)
+            return self._call(config, np.round(rel, 2), load_n, None, kind, values, init, fn=fn)
         grid = np.arange(0.0, rel[-1] + tick / 2, tick)
         idx = np.clip(np.searchsorted(rel, grid, side="right") - 1, 0, len(rel) - 1)
-        tr = self._call(config, grid, np.asarray(load_n)[idx], None, kind, values, init, fn)
+        tr = self._call(config, grid, np.asarray(load_n)[idx], None, kind, values, init, fn=fn)
         back = np.clip(np.searchsorted(grid, rel, side="right") - 1, 0, len(grid) - 1)
         return Trace(t_s, {k: np.interp(rel, grid, v) for k, v in tr.signals.items()},
                      {k: v[back] for k, v in tr.commands.items()})
 
     def generate(self, config, t_s, load_n, truth_effect, truth_params, seed=0):
         """Closed loop with a truth variant of the blind test (libleveler_truth.so, same
-        ids as the candidates): truth_params is the list of the variant's values."""
+        ids as the candidates): truth_params is the list of the variant's values.
+        The rig starts at rest: platform still, motor stopped."""
         if self.truth_fn is None:
             self.truth_fn = _bind(_library(find_truth_library()).truth_simulate)
         kind = 0 if truth_effect in (None, "none") else fx.get(truth_effect).effect_id
         return self._closed_loop(config, np.asarray(t_s, dtype=float), load_n, kind,
-                                 list(truth_params or []), [np.nan] * 3, self.truth_fn)
+                                 list(truth_params or []), [np.nan] * 4 + [0.0], self.truth_fn)

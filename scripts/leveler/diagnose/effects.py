@@ -12,6 +12,8 @@ import json
 import os
 from dataclasses import dataclass
 
+import numpy as np
+
 CATALOGUE = os.path.join(os.path.dirname(__file__), "..", "..", "..", "host_sim", "plant", "effects.json")
 
 
@@ -61,3 +63,21 @@ def get(name):
         return BY_NAME[name]
     except KeyError:
         raise KeyError(f"unknown effect {name!r}; known: {', '.join(NAMES)}") from None
+
+
+# The fit's unit box: [0, 1] per parameter, log-mapped where the range spans decades.
+def to_unit(effect, params):
+    u = []
+    for p in effect.params:
+        v = min(max(params[p.name], p.lo), p.hi)
+        u.append((np.log(v) - np.log(p.lo)) / (np.log(p.hi) - np.log(p.lo)) if p.log
+                 else (v - p.lo) / (p.hi - p.lo))
+    return np.array(u)
+
+
+def from_unit(effect, u):
+    out = {}
+    for p, x in zip(effect.params, np.clip(u, 0.0, 1.0)):
+        out[p.name] = float(np.exp(np.log(p.lo) + x * (np.log(p.hi) - np.log(p.lo))) if p.log
+                            else p.lo + x * (p.hi - p.lo))
+    return out

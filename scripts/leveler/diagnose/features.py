@@ -159,3 +159,30 @@ def thesis_experiment_file(path):
     with open(path, "w") as fh:
         json.dump(doc, fh, indent=2)
         fh.write("\n")
+
+
+# The thesis's accumulator experiment (Chapter IV): case -> config with that charge.
+ACCUMULATOR_CONFIGS = {
+    "thesis-900lb-acc90psig-exp": "thesis-900lb-diaphragm-90psig",
+    "thesis-900lb-acc100psig-exp": "thesis-900lb-diaphragm-100psig",
+    "thesis-900lb-acc112psig-exp": "thesis-900lb-diaphragm",
+    "thesis-1000lb-acc100psig-exp": "thesis-1000lb-diaphragm-100psig",
+    "thesis-1000lb-acc110psig-exp": "thesis-1000lb-diaphragm-110psig",
+}
+
+
+def thesis_accumulator_file(path):
+    """Writes the thesis accumulator experiment figures (leveler.thesis.CASES) as a
+    features file: 900 lb for calibration, 1000 lb held out. The 1000 lb, 120 psig
+    run ("no time delay") has no figure and is left out."""
+    from leveler import thesis
+    runs = []
+    for case, config in ACCUMULATOR_CONFIGS.items():
+        feats = {k: v for k, v in thesis.CASES[case].items() if v is not None}
+        runs.append({"name": case, "config": config, "role": "calibration" if "900lb" in case else "holdout",
+                     "features": feats})
+    doc = {"source": "thesis Chapter IV accumulator experiment (diaphragm, +200 lb), SI", "runs": runs}
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path, "w") as fh:
+        json.dump(doc, fh, indent=2)
+        fh.write("\n")

@@ -17,7 +17,9 @@ from scipy.stats import qmc
 
 from . import effects as fx
 from . import gap
+from .effects import from_unit, to_unit
 from .model import CLOSED_LOOP, REPLAY, make_simulator
+from .uncertainty import assess
 
 RESAMPLE_S = 0.05        # residuals every 50 ms: 20 Hz is plenty for a 0.1-10 s plant
 FAILED_RESIDUAL = 100.0  # normalised residual of a sample the simulation could not produce
@@ -27,23 +29,6 @@ def choose_mode(run, mode):
     if mode == "auto":
         return REPLAY if getattr(run, "has_commands", False) else CLOSED_LOOP
     return mode
-
-
-def to_unit(effect, params):
-    u = []
-    for p in effect.params:
-        v = min(max(params[p.name], p.lo), p.hi)
-        u.append((np.log(v) - np.log(p.lo)) / (np.log(p.hi) - np.log(p.lo)) if p.log
-                 else (v - p.lo) / (p.hi - p.lo))
-    return np.array(u)
-
-
-def from_unit(effect, u):
-    out = {}
-    for p, x in zip(effect.params, np.clip(u, 0.0, 1.0)):
-        out[p.name] = float(np.exp(np.log(p.lo) + x * (np.log(p.hi) - np.log(p.lo))) if p.log
-                            else p.lo + x * (p.hi - p.lo))
-    return out
 
 
 class Problem:
@@ -82,7 +67,9 @@ def run_residual(run, trace):
         x = r[::stride] / gap.SCALES[s]
         measured = np.isfinite(run.signals[s][::stride])
         # not measured: no information; measured but the simulation failed (NaN): as bad as it gets
-        x = np.where(measured, np.where(np.isfinite(x), x, FAILED_RESIDUAL), 0.0)
+        # a diverging simulation counts as failed, never as an overflow in the squares
+        x = np.where(measured, np.where(np.isfinite(x), np.clip(x, -FAILED_RESIDUAL, FAILED_RESIDUAL),
+                                        FAILED_RESIDUAL), 0.0)
         parts.append(x)
     if not parts:
         return np.zeros(0)
@@ -120,7 +107,7 @@ def fit_effect(problem, effect, starts=32, max_nfev=60, seed=0, polish=4):
         c = float(np.sum(res.fun ** 2))
         if c < best_cost:
             best_u, best_cost = res.x, c
-    return {"params": from_unit(effect, best_u),
+    return {"params": from_unit(effect, best_u), "unit": [float(x) for x in best_u],
             "calibration_gap": float(np.sqrt(best_cost / max(len(problem.runs), 1)))}
 
 
@@ -141,6 +128,7 @@ def _run_candidate(name, fit_opts):
     calib, hold = _worker["calib"], _worker["hold"]
     res = fit_effect(calib, eff, **fit_opts)
     res["holdout_gap"] = hold.gap(name, res["params"])
+    res["uncertainty"] = assess(calib, eff, res["unit"])
     res["simulations"] = calib.nsim + hold.nsim
     res["seconds"] = time.perf_counter() - t0
     calib.nsim = hold.nsim = 0

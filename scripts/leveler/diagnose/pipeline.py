@@ -3,8 +3,10 @@ import time
 
 import numpy as np
 
+from . import design
 from . import effects as fx
 from . import fit
+from . import separability
 from . import gap
 from . import phases as ph
 
@@ -99,10 +101,22 @@ def signatures(runs, problem, nominal, ranking):
 JITTERS = [(h, p) for h in (-40e-6, -10e-6, 10e-6, 40e-6) for p in (-200.0, 50.0)]
 
 
-def sensitivity_floor(problem, nominal_gap):
-    """Largest held-out shrink a physically meaningless jitter achieves (features mode)."""
+# Traces: a named effect must beat the floor by this many points.
+FLOOR_MARGIN_PTS = 10.0
+
+
+def noise_jitters(runs):
+    """Offsets of a quarter and one standard deviation of the logs' own sensor noise:
+    imperceptible, yet on a platform held by hysteresis they move when it breaks free."""
+    noise = design.noise_levels(runs)
+    sh, sp = noise.get("height_m", 2e-5), noise.get("p_spring_pa", 50.0)
+    return [(h * sh, p * sp) for h in (-1.0, -0.25, 0.25, 1.0) for p in (-1.0, -0.25, 0.25, 1.0)]
+
+
+def sensitivity_floor(problem, nominal_gap, jitters=JITTERS):
+    """Largest held-out shrink a physically meaningless jitter achieves."""
     best = 0.0
-    for h, p in JITTERS:
+    for h, p in jitters:
         g = problem.gap("sensor_lag", {"h_offset_m": h, "p_offset_pa": p})
         best = max(best, shrink(nominal_gap, g))
     return best
@@ -164,8 +178,36 @@ def feature_before_after(problem, runs, nominal, augmented):
     return out
 
 
+def _params_of(entry):
+    return {k: v["value"] for k, v in entry["params"].items()}
+
+
+def lookalike_step(problem, ranking, threshold, named, progress, design_pair=None):
+    """Separability of the leading candidates, and for a look-alike pair (or the
+    pair asked for) the experiment that separates them best."""
+    out = {"lookalikes": None, "experiment": None}
+    if named:
+        lk = separability.lookalikes(problem, ranking, threshold)
+        out["lookalikes"] = lk
+        for t in lk["tests"]:
+            a, b = t["effects"]
+            progress(f"      {a} vs {b}: {b} refitted on {a}'s simulated runs leaves {t['b_on_a_gap']:.3f} "
+                     f"({a}'s own gap {t['a_own_gap']:.3f}), the other way {t['a_on_b_gap']:.3f} "
+                     f"({t['b_own_gap']:.3f}): " + ("cannot be told apart" if t["cannot_tell_apart"]
+                                                     else "told apart"))
+    pair = design_pair or ((out["lookalikes"] or {}).get("group") or [])[:2]
+    if len(pair) == 2:
+        by = {r["effect"]: r for r in ranking}
+        a, b = (by[pair[0]], by[pair[1]])
+        out["experiment"] = design.propose(problem, (a["effect"], _params_of(a)), (b["effect"], _params_of(b)))
+        best = out["experiment"]["ranked"][0]
+        progress(f"      proposed experiment to tell {a['effect']} from {b['effect']}: {best['schedule']} "
+                 f"(predicted difference {best['separation_noise_units']:.1f} x sensor noise)")
+    return out
+
+
 def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jobs=None,
-             progress=print, fit_opts=None):
+             progress=print, fit_opts=None, design_pair=None):
     """Returns (result dict for diagnosis.json, traces for the report)."""
     t0 = time.perf_counter()
     candidates = candidates or fx.NAMES
@@ -209,9 +251,8 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
         e = fx.get(name)
         ranking.append({
             "effect": name,
-            "params": {p.name: {"value": r["params"][p.name], "lo": p.lo, "hi": p.hi,
-                                "at_bound": bool(np.isclose(r["params"][p.name], p.lo, rtol=1e-3, atol=1e-12)
-                                                 or np.isclose(r["params"][p.name], p.hi, rtol=1e-3))}
+            "params": {p.name: dict({"value": r["params"][p.name], "lo": p.lo, "hi": p.hi},
+                                    **r["uncertainty"][p.name])
                        for p in e.params},
             "calibration_gap": r["calibration_gap"],
             "calibration_shrink_pct": shrink(nominal_cal_gap, r["calibration_gap"]),
@@ -228,13 +269,17 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
     threshold = THRESHOLD_PCT
-    floor = None
     if features:
         floor = sensitivity_floor(hold_problem, nominal_hold_gap)
         threshold = max(THRESHOLD_PCT, floor)
-        progress(f"      sensitivity floor of the held-out figures: {floor:.1f}% (threshold {threshold:.1f}%)")
+    else:
+        floor = sensitivity_floor(hold_problem, nominal_hold_gap, noise_jitters(holdout))
+        threshold = max(THRESHOLD_PCT, floor + FLOOR_MARGIN_PTS)
+    progress(f"      sensitivity floor of the held-out {'figures' if features else 'runs'}: {floor:.1f}% "
+             f"(threshold {threshold:.1f}%)")
     named = best["shrink_pct"] >= threshold
     winner = best["effect"] if named else "none"
+    look = lookalike_step(cal_problem, ranking, threshold, named and not features, progress, design_pair)
 
     progress(f"[3/3] before/after on held-out runs ({'winner ' + winner if named else 'no effect'})")
     if named:
@@ -258,6 +303,10 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
         "effect": winner,
         "margin_pct": (best["shrink_pct"] - runner["shrink_pct"]) if runner else None,
         "runner_up": runner["effect"] if runner else None,
+        # look-alikes: the candidates these logs cannot tell apart (the winner first), with evidence
+        "cannot_tell_apart": (look["lookalikes"] or {}).get("group", []),
+        "separability": (look["lookalikes"] or {}).get("tests", []),
+        "experiment": look["experiment"],
         "gap_before": ba["overall"]["before"],
         "gap_after": ba["overall"]["after"],
         "shrink_pct": shrink(ba["overall"]["before"]["normalised"], ba["overall"]["after"]["normalised"]),

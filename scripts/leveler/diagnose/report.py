@@ -20,6 +20,39 @@ def _json_default(o):
     raise TypeError(type(o))
 
 
+def _param_text(name, v):
+    flags = [f for f, on in (("at its bound", v.get("at_bound")),
+                             ("not identifiable", v.get("identifiable") is False),
+                             ("refits on fewer runs outside", v.get("over_runs_within") is False)) if on]
+    iv = v.get("interval")
+    iv = f" ({iv[0]:.3g}..{iv[1]:.3g})" if iv else ""
+    return f"{name}={v['value']:.3g}{iv} [{v['lo']:.3g}, {v['hi']:.3g}]" + (f" {', '.join(flags)}" if flags else "")
+
+
+def _lookalike_html(result):
+    """Look-alikes with their cross-fit evidence, and the proposed experiment."""
+    parts = []
+    group = result.get("cannot_tell_apart") or []
+    if group:
+        parts.append(f"<p><b>Cannot be told apart from these logs:</b> {html.escape(', '.join(group))}. "
+                     "Each, refitted on the runs the other would make, explains them as well as it "
+                     "explains the real runs.</p>")
+    if result.get("separability"):
+        parts.append(_table(result["separability"], [
+            ("A / B", lambda r: " / ".join(r["effects"])),
+            ("B refitted on A's runs: gap", lambda r: r["b_on_a_gap"]), ("A's own gap", lambda r: r["a_own_gap"]),
+            ("A refitted on B's runs: gap", lambda r: r["a_on_b_gap"]), ("B's own gap", lambda r: r["b_own_gap"]),
+            ("told apart", lambda r: "no" if r["cannot_tell_apart"] else "yes")]))
+    exp = result.get("experiment")
+    if exp:
+        parts.append(f"<h3>Proposed experiment: {html.escape(' vs '.join(exp['between']))} "
+                     "(experiment.csv, a <code>leveler-sim --schedule</code> file)</h3>")
+        parts.append(_table(exp["ranked"], [
+            ("schedule", lambda r: r["schedule"]),
+            ("predicted difference / sensor noise", lambda r: r["separation_noise_units"])]))
+    return parts
+
+
 def write_json(path, result):
     """Strict JSON: NaN/inf (a figure that could not be computed) become null."""
     with open(path, "w") as fh:
@@ -107,6 +140,7 @@ def write_html(path, result, traces):
                      f"threshold {result['threshold_pct']:.0f}%).</p>")
     else:
         parts.append(f"<p>No candidate shrinks the held-out gap by {result['threshold_pct']:.0f}% or more.</p>")
+    parts += _lookalike_html(result)
     gb, ga = result["gap_before"], result["gap_after"]
     parts.append(_table([{"k": k, "b": gb[k], "a": ga.get(k, float('nan'))} for k in gb],
                         [("held-out gap", lambda r: r["k"]), ("nominal", lambda r: r["b"]),
@@ -118,8 +152,8 @@ def write_html(path, result, traces):
         ("calibration shrink %", lambda r: r["calibration_shrink_pct"]),
         ("held-out gap", lambda r: r["holdout_gap"]),
         ("signature match", lambda r: r.get("signature_match", float("nan"))),
-        ("parameters", lambda r: ", ".join(f"{k}={v['value']:.3g} [{v['lo']:.3g}, {v['hi']:.3g}]"
-                                           for k, v in r["params"].items()))]))
+        ("parameters: value (95 % interval) [range] flags", lambda r: "; ".join(
+            _param_text(k, v) for k, v in r["params"].items()))]))
     parts.append("<h2>Where the gap lies (nominal model, all runs)</h2>")
     ranked = result["where"]["ranked"]
     if ranked and "figure" in ranked[0]:

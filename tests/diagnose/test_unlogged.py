@@ -1,0 +1,81 @@
+"""What the log does not hold: the motor speed at the start, edges between the
+samples of a coarse log, and the look-alike and experiment-design checks on the
+C plant. Expectations come from the same plant run closed loop with the state
+known (the truth the replay must recover)."""
+import numpy as np
+import pytest
+
+from conftest import LB, thesis_schedule
+from leveler.diagnose import design, separability
+from leveler.diagnose.cplant import initial_state
+from leveler.diagnose.fit import Problem
+from leveler.diagnose.model import REPLAY
+from leveler.diagnose.runs import Run
+
+CONFIG = "thesis-900lb"
+
+
+ACC = "thesis-900lb-diaphragm-90psig"
+
+
+def truth_run(cplant, omega0):
+    """Algorithm 2 at rest with the accumulator below its charge limit: the platform
+    is still and the compressor charges from the first tick, the motor turning at
+    omega0 when the run starts."""
+    t, _ = thesis_schedule(end=10.0)
+    load = np.full(len(t), 900.0 * LB)
+    tr = cplant._closed_loop(ACC, t, load, 0, [], [np.nan] * 4 + [omega0])
+    return Run("truth.csv", t, tr.signals, load, tr.commands), tr
+
+
+@pytest.mark.parametrize("omega0", [0.0, 60.0])
+def test_the_motor_speed_at_the_start_is_recovered_from_p1(cplant, omega0):
+    run, _ = truth_run(cplant, omega0)
+    init, duty = initial_state(run)
+    assert duty > 0.5                      # the compressor does run at the start
+    w, shift = cplant.start_motor_speed(ACC, run, init, duty)
+    assert abs(w - omega0) < 3.0, f"estimated {w:.1f} rad/s, truth {omega0}"
+
+
+def test_a_coarse_jittered_log_replays_to_its_truth(cplant):
+    """25 Hz with jittered stamps: the replay on the tick grid with edges halfway
+    between samples stays within a fraction of a millimetre of the truth."""
+    t, load = thesis_schedule(end=45.0, on=5.0, off=30.0)
+    tr = cplant._closed_loop(CONFIG, t, load, 0, [], [np.nan] * 4 + [0.0])
+    rng = np.random.default_rng(3)
+    ts = np.unique(np.round(np.arange(0.0, 45.0, 0.04) + rng.uniform(-0.008, 0.008, 1125), 4))
+    ts[0] = 0.0
+    idx = np.clip(np.searchsorted(t, ts + 1e-9, side="right") - 1, 0, len(t) - 1)
+    sig = {k: np.interp(ts, t, v) for k, v in tr.signals.items()}
+    coarse = Run("coarse.csv", ts, sig, load[idx], {k: v[idx] for k, v in tr.commands.items()})
+    rep = cplant.simulate(CONFIG, coarse, None, {}, REPLAY)
+    err = np.sqrt(np.mean((rep.signals["height_m"] - sig["height_m"]) ** 2))
+    # against holding each switch from the sample that first shows it (zero-order hold)
+    held = np.clip(np.searchsorted(ts, t + 1e-9, side="right") - 1, 0, len(ts) - 1)
+    zoh = cplant._call(CONFIG, t, load, {k: v[idx][held] for k, v in tr.commands.items()}, 0, [],
+                       cplant.start_state(CONFIG, coarse))
+    err_zoh = np.sqrt(np.mean((np.interp(ts, t, zoh.signals["height_m"]) - sig["height_m"]) ** 2))
+    assert err < 0.5e-3 and err < err_zoh, (err, err_zoh)
+
+
+def test_a_leak_is_told_apart_from_friction_and_the_design_sees_no_difference_in_twins(cplant):
+    """Leak data: the fitted leak and a friction candidate are told apart (friction
+    cannot make a pressure fall with the valves shut). And a candidate against
+    itself is predicted to differ by nothing under every schedule."""
+    t, load = thesis_schedule(end=40.0, on=5.0, off=25.0)
+    leak = {"leak_area_m2": 2e-8}
+    tr = cplant._closed_loop(CONFIG, t, load, 6, [leak["leak_area_m2"]], [np.nan] * 4 + [0.0])
+    run = Run("leak.csv", t, tr.signals, load, tr.commands)
+    prob = Problem(cplant, CONFIG, [run], REPLAY)
+    a = {"effect": "leak", "params": {"leak_area_m2": {"value": 2e-8}},
+         "calibration_gap": prob.gap("leak", leak) + 0.05}
+    b = {"effect": "friction", "params": {"coulomb_n": {"value": 50.0}, "stribeck_n": {"value": 20.0},
+                                          "stribeck_v_m_s": {"value": 0.005}},
+         "calibration_gap": prob.gap("friction", {"coulomb_n": 50.0, "stribeck_n": 20.0}) + 0.05}
+    t_ab = separability.test_pair(prob, a, b)
+    assert not t_ab["cannot_tell_apart"]
+    assert t_ab["b_on_a_gap"] > a["calibration_gap"]
+    same = design.propose(prob, ("leak", leak), ("leak", leak))
+    assert all(r["separation_noise_units"] == 0.0 for r in same["ranked"])
+    differ = design.propose(prob, ("leak", leak), (None, {}))
+    assert differ["ranked"][0]["separation_noise_units"] > 1.0
