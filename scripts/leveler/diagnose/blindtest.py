@@ -4,13 +4,20 @@ For each case (seven effects and `none`) and seed: the C plant with the
 effect's TRUTH variant (a different functional form from the candidate the
 diagnosis fits: host_sim/blindtest/truth.c, catalogued in truth.json, built
 into libleveler_truth.so, not part of the product) at a random strength
-within its physical range runs closed loop with the firmware, on three different load
-schedules (two for calibration, one held out); sensor noise is added. The
-label is sealed in a file the diagnosis never sees; the diagnosis runs as a
-separate process on the logs alone. Then: confusion matrix, hit rate,
-held-out shrink of the correctly named cases, false effects in `none` cases.
+within its physical range runs closed loop with the firmware, on three
+different load schedules (two for calibration, one held out). Each case draws
+a system (900 lb, 1000 lb, or 900 lb with the diaphragm accumulator under
+algorithm 2) and a log kind: a 100 Hz 12-bit log, or a rig-rate log (20-50 Hz,
+jittered time stamps, 10-11 bit, more noise). The firmware reads the sensors
+with one count of noise, as on a rig (algorithm 2 then chatters at the charge
+limit). The label is sealed in a file the diagnosis never sees; the diagnosis
+runs as a separate process on the logs alone. When it reports look-alikes,
+the experiment it proposes is run on the same truth and the look-alikes are
+scored on it: the case counts as right only when that names the truth.
+Then: confusion matrix, hit rate, held-out shrink of the correctly named
+cases, false effects in `none` cases.
 
-Targets (docs/diagnosis.md): >= 90 % named right, median shrink >= 70 % when
+Targets (docs/diagnosis.md): >= 95 % named right, median shrink >= 85 % when
 right, no effect named in a `none` case.
 """
 import argparse
@@ -25,17 +32,30 @@ import numpy as np
 
 from leveler import thesis
 
-from . import cplant
+from . import design
 from . import effects as fx
 from . import runs
+from .cplant import CONFIG_DIR
 from .model import make_simulator
 
 LB = thesis.N_PER_LBF
 CONFIG = "thesis-900lb"
 CASES = fx.NAMES + ["none"]
-NOISE_HEIGHT_M = 0.08e-3     # LVDT: about one 12-bit count of a 0.25 m span
-NOISE_PRESSURE_PA = 300.0    # transducer: about one count of a 1.38 MPa span
-
+# system: (config, base lb, calibration steps lb, held-out step lb); loaded states
+# stay in one hysteresis band of the thesis (1050..1150 lb at 900, >= 1150 lb at 1000)
+SYSTEMS = {
+    "900lb": ("thesis-900lb", 900.0, (240.0, 150.0), 200.0),
+    "1000lb": ("thesis-1000lb", 1000.0, (240.0, 180.0), 210.0),
+    "accumulator": ("thesis-900lb-diaphragm", 900.0, (240.0, 150.0), 200.0),
+}
+FIRMWARE_NOISE_COUNTS = 1.0
+# log kinds: (name, rate range Hz, jitter fraction of a period, bits, height noise m, pressure noise Pa)
+LOG_KINDS = {
+    "100Hz": (100.0, 100.0, 0.0, 12, 0.08e-3, 300.0),
+    "rig": (20.0, 50.0, 0.2, (10, 11), 0.15e-3, 600.0),
+}
+HEIGHT_SPAN_M = 0.25
+PRESSURE_SPAN_PA = 1.38e6
 
 TRUTH_CATALOGUE = os.path.join(os.path.dirname(__file__), "..", "..", "..", "host_sim", "blindtest", "truth.json")
 
@@ -55,45 +75,90 @@ def truth_params(effect, rng):
     return [float(rng.uniform(*p["draw"])) for p in TRUTH[effect]["params"]]
 
 
-def schedules(rng):
-    """Two calibration schedules and one held-out one, all different (900 lb base).
-    The held-out step lies between the calibration steps: it tests the fitted
-    model on a new schedule, not on heights no calibration run reached. All
-    loaded states stay in one hysteresis band of the thesis (1050..1150 lb):
-    at 1150 lb the program's 1200 lb line takes over and the platform sinks
-    another 2.7 in, a different regime."""
+def schedules(rng, system):
+    """Two calibration schedules and one held-out one, all different. The
+    held-out step lies between the calibration steps: it tests the fitted
+    model on a new schedule, not on heights no calibration run reached."""
+    _, base_lb, (c1, c2), h = SYSTEMS[system]
     j = lambda: rng.uniform(-1.0, 1.0)
-    base = 900.0 * LB
+    base = base_lb * LB
     return [
-        ("cal1", 5.0 + j(), 35.0 + j(), 55.0, base + 240.0 * LB),
-        ("cal2", 4.0 + j(), 31.0 + j(), 50.0, base + 150.0 * LB),
-        ("hold", 6.0 + j(), 33.0 + j(), 52.0, base + 200.0 * LB),
+        ("cal1", [(0.0, base), (5.0 + j(), base + c1 * LB), (35.0 + j(), base)], 55.0),
+        ("cal2", [(0.0, base), (4.0 + j(), base + c2 * LB), (31.0 + j(), base)], 50.0),
+        ("hold", [(0.0, base), (6.0 + j(), base + h * LB), (33.0 + j(), base)], 52.0),
     ]
 
 
-def generate_case(sim, effect, seed, folder):
+def case_kind(seed, case):
+    """System and log kind of a case: every seed covers all of them, rotating."""
+    k = seed * 7 + CASES.index(case)
+    return list(SYSTEMS)[k % len(SYSTEMS)], list(LOG_KINDS)[(k // len(SYSTEMS)) % len(LOG_KINDS)]
+
+
+def rig_config(folder, system, seed):
+    """The system's config with a count of sensor noise the firmware reads."""
+    path = os.path.join(folder, "rig.ini")
+    with open(path, "w") as fh:
+        fh.write(f"[config]\ninclude = {os.path.join(CONFIG_DIR, SYSTEMS[system][0] + '.ini')}\n"
+                 f"name = blindtest-rig\n\n[sensors]\nnoise_counts = {FIRMWARE_NOISE_COUNTS}\n"
+                 f"noise_seed = {seed}\n")
+    return path
+
+
+def log_times(rng, kind, end):
+    """Sample times of a log: 100 Hz on the tick grid, or a jittered rig rate."""
+    lo, hi, jit = LOG_KINDS[kind][:3]
+    if jit == 0.0:
+        return np.round(np.arange(0.0, end + 1e-9, 0.01), 2)
+    dt = 1.0 / rng.uniform(lo, hi)
+    t = np.arange(0.0, end, dt) + rng.uniform(-jit, jit, int(np.ceil(end / dt))) * dt
+    t[0] = 0.0
+    return np.unique(np.round(t, 4))
+
+
+def quantise(v, span, bits):
+    lsb = span / (2 ** bits)
+    return np.round(v / lsb) * lsb
+
+
+def write_truth_log(sim, path, rig, system, steps, end, effect, params, kind, rng):
+    """Run the truth closed loop on the 10 ms tick and write the log the rig would."""
+    t = np.round(np.arange(0.0, end + 1e-9, 0.01), 2)
+    load = design.schedule_loads(t, steps)
+    tr = sim.generate(rig, t, load, effect, params, 0)
+    ts = log_times(rng, kind, end)
+    idx = np.clip(np.searchsorted(t, ts + 1e-9, side="right") - 1, 0, len(t) - 1)  # in force at ts
+    bits = LOG_KINDS[kind][3]
+    bits = int(rng.integers(bits[0], bits[1] + 1)) if isinstance(bits, tuple) else bits
+    nh, npr = LOG_KINDS[kind][4:]
+    sig = {"height_m": quantise(np.interp(ts, t, tr.signals["height_m"]) + rng.normal(0.0, nh, len(ts)),
+                                HEIGHT_SPAN_M, bits)}
+    for s in ("p_spring_pa", "p_pipe_pa", "p_acc_pa"):
+        v = np.interp(ts, t, tr.signals[s]) + rng.normal(0.0, npr, len(ts))
+        sig[s] = quantise(v, PRESSURE_SPAN_PA, bits)
+    if system != "accumulator":
+        sig["p_acc_pa"] = np.full(len(ts), np.nan)
+    cmds = {k: v[idx] for k, v in tr.commands.items()}
+    runs.write_run(path, ts, sig, load[idx], cmds, SYSTEMS[system][0], "rig")
+
+
+def generate_case(sim, effect, seed, folder, system="900lb", kind="100Hz"):
     """Writes cal1.csv, cal2.csv, hold.csv; returns the truth parameters."""
     rng = np.random.default_rng(seed * 1000 + CASES.index(effect))
     params = truth_params(effect, rng)
-    for name, t_on, t_off, end, loaded in schedules(rng):
-        t = np.round(np.arange(0.0, end + 1e-9, 0.01), 2)
-        load = cplant.scenario_loads(t, {"base_load_n": 900.0 * LB, "step_load_n": loaded - 900.0 * LB,
-                                         "step_on_s": t_on, "step_off_s": t_off, "end_s": end})
-        tr = sim.generate(CONFIG, t, load, effect, params, seed)
-        sig = dict(tr.signals)
-        sig["height_m"] = sig["height_m"] + rng.normal(0.0, NOISE_HEIGHT_M, len(t))
-        for s in ("p_spring_pa", "p_pipe_pa"):
-            sig[s] = sig[s] + rng.normal(0.0, NOISE_PRESSURE_PA, len(t))
-        sig["p_acc_pa"] = np.full(len(t), np.nan)
-        runs.write_run(os.path.join(folder, f"{name}.csv"), t, sig, load, tr.commands, CONFIG, "rig")
+    rig = rig_config(os.path.dirname(os.path.abspath(folder)), system, seed)
+    for name, steps, end in schedules(rng, system):
+        write_truth_log(sim, os.path.join(folder, f"{name}.csv"), rig, system, steps, end, effect, params,
+                        kind, rng)
     return params
 
 
-def diagnose_blind(folder, out, extra):
+def diagnose_blind(folder, out, config, extra, runs_=("cal1", "cal2"), holdout="hold"):
     """The diagnosis as its own process, on the logs only."""
-    cmd = [sys.executable, "-m", "leveler.diagnose", "--config", CONFIG,
-           "--run", os.path.join(folder, "cal1.csv"), "--run", os.path.join(folder, "cal2.csv"),
-           "--holdout", os.path.join(folder, "hold.csv"), "--out", out, "--quiet"] + extra
+    cmd = [sys.executable, "-m", "leveler.diagnose", "--config", config]
+    for r in runs_:
+        cmd += ["--run", os.path.join(folder, f"{r}.csv")]
+    cmd += ["--holdout", os.path.join(folder, f"{holdout}.csv"), "--out", out, "--quiet"] + list(extra)
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         raise RuntimeError(f"diagnosis failed ({p.returncode}): {p.stderr.strip()}")
@@ -101,12 +166,80 @@ def diagnose_blind(folder, out, extra):
         return json.load(fh)
 
 
-def confusion(results):
+def read_schedule(path):
+    """A `leveler-sim --schedule` file: [(t_s, load_n)], end time."""
+    rows = []
+    with open(path) as fh:
+        for line in fh:
+            line = line.strip()
+            if line and not line.startswith("#") and not line.startswith("t_s"):
+                t, v = line.split(",")
+                rows.append((float(t), float(v)))
+    return rows[:-1], rows[-1][0]
+
+
+def run_experiment(sim, folder, d, case, params, system, kind, seed, extra):
+    """Look-alikes: run the proposed experiment on the same truth and score the
+    look-alikes, fitted on the calibration runs as before, on it: the experiment
+    was designed from their predictions, so it is the held-out run that decides.
+    Returns the new verdict."""
+    logs = os.path.join(folder, "logs")
+    steps, end = read_schedule(os.path.join(folder, "diagnosis", "experiment.csv"))
+    rng = np.random.default_rng(seed * 1000 + CASES.index(case) + 500)
+    rig = os.path.join(folder, "rig.ini")
+    write_truth_log(sim, os.path.join(logs, "experiment.csv"), rig, system, steps, end, case, params, kind, rng)
+    group = ",".join(d["cannot_tell_apart"])
+    d2 = diagnose_blind(logs, os.path.join(folder, "diagnosis-experiment"), SYSTEMS[system][0],
+                        list(extra) + ["--effects", group], holdout="experiment")
+    return d2["effect"]
+
+
+def run_case(sim, top, seed, case, index, extra, force=(None, None)):
+    system, kind = case_kind(seed, case)
+    system, kind = force[0] or system, force[1] or kind
+    folder = os.path.join(top, f"seed{seed}-{index:02d}")
+    logs = os.path.join(folder, "logs")
+    os.makedirs(logs, exist_ok=True)
+    params = generate_case(sim, case, seed, logs, system, kind)
+    # the sealed label: beside the logs, never passed to the diagnosis
+    with open(os.path.join(folder, "label.sealed.json"), "w") as fh:
+        json.dump({"effect": case, "truth_params": params, "seed": seed, "system": system, "log": kind}, fh)
+    t0 = time.perf_counter()
+    d = diagnose_blind(logs, os.path.join(folder, "diagnosis"), SYSTEMS[system][0], extra)
+    r = {"seed": seed, "truth": case, "system": system, "log": kind, "named": d["effect"],
+         "shrink_pct": d["shrink_pct"], "margin_pct": d["margin_pct"], "seconds": time.perf_counter() - t0,
+         "lookalikes": d.get("cannot_tell_apart", []),
+         "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]]}
+    r["verdict"] = d["effect"]
+    if r["lookalikes"]:
+        r["after_experiment"] = (run_experiment(sim, folder, d, case, params, system, kind, seed, extra)
+                                 if case in r["lookalikes"] else "truth not among them")
+        r["verdict"] = r["after_experiment"]
+    return r
+
+
+def confusion(results, key="verdict"):
     lines = ["truth \\ named  " + " ".join(f"{c[:7]:>7}" for c in CASES)]
     for t in CASES:
-        row = [sum(1 for r in results if r["truth"] == t and r["named"] == c) for c in CASES]
+        row = [sum(1 for r in results if r["truth"] == t and r[key] == c) for c in CASES]
         lines.append(f"{t:<15}" + " ".join(f"{v:>7}" for v in row))
     return "\n".join(lines)
+
+
+def summary(results):
+    """The figures of the targets, overall and per system and log kind."""
+    right = [r for r in results if r["verdict"] == r["truth"]]
+    eff_right = [r["shrink_pct"] for r in right if r["truth"] != "none"]
+    none_cases = [r for r in results if r["truth"] == "none"]
+    out = {"hit_pct": 100.0 * len(right) / max(len(results), 1), "right": len(right), "cases": len(results),
+           "median_shrink_pct": float(np.median(eff_right)) if eff_right else float("nan"),
+           "false_in_none": sum(1 for r in none_cases if r["verdict"] != "none"), "none_cases": len(none_cases),
+           "lookalike_cases": sum(1 for r in results if r["lookalikes"]),
+           "median_seconds": float(np.median([r["seconds"] for r in results])) if results else float("nan")}
+    for key in ("system", "log"):
+        out[f"by_{key}"] = {v: f"{sum(1 for r in right if r[key] == v)}/{sum(1 for r in results if r[key] == v)}"
+                            for v in sorted({r[key] for r in results})}
+    return out
 
 
 def main(argv=None):
@@ -115,10 +248,14 @@ def main(argv=None):
     ap.add_argument("--seeds", type=int, default=5, help="seeds per case (default 5)")
     ap.add_argument("--first-seed", type=int, default=1)
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated subset of cases")
+    ap.add_argument("--system", choices=sorted(SYSTEMS), help="only this system (default: rotate)")
+    ap.add_argument("--log", choices=sorted(LOG_KINDS), help="only this log kind (default: rotate)")
     ap.add_argument("--fast", action="store_true", help="smaller fitting budget (the CTest variant)")
     ap.add_argument("--keep", metavar="DIR", help="keep logs, sealed labels and diagnoses here")
     ap.add_argument("--json", metavar="FILE", help="write all results here")
     ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
+    ap.add_argument("--min-hit", type=float, default=95.0, help="--check: least %% named right")
+    ap.add_argument("--min-shrink", type=float, default=85.0, help="--check: least median shrink %% when right")
     a = ap.parse_args(argv)
     cases = [c for c in a.cases.split(",") if c]
     for c in cases:
@@ -132,40 +269,28 @@ def main(argv=None):
     t_all = time.perf_counter()
     for seed in range(a.first_seed, a.first_seed + a.seeds):
         for case in cases:
-            folder = os.path.join(top, f"seed{seed}-{len(results):02d}")
-            logs = os.path.join(folder, "logs")
-            os.makedirs(logs, exist_ok=True)
-            params = generate_case(sim, case, seed, logs)
-            # the sealed label: beside the logs, never passed to the diagnosis
-            with open(os.path.join(folder, "label.sealed.json"), "w") as fh:
-                json.dump({"effect": case, "truth_params": params, "seed": seed}, fh)
-            t0 = time.perf_counter()
-            d = diagnose_blind(logs, os.path.join(folder, "diagnosis"), extra)
-            r = {"seed": seed, "truth": case, "named": d["effect"], "shrink_pct": d["shrink_pct"],
-                 "margin_pct": d["margin_pct"], "seconds": time.perf_counter() - t0,
-                 "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]]}
+            r = run_case(sim, top, seed, case, len(results), extra, (a.system, a.log))
             results.append(r)
-            ok = "ok " if r["named"] == case else "MISS"
-            print(f"{ok} seed {seed} truth {case:<15} named {r['named']:<15} held-out shrink "
-                  f"{r['shrink_pct']:6.1f}%  ({r['seconds']:.0f} s)  top: {r['ranking'][:3]}", flush=True)
+            ok = "ok " if r["verdict"] == case else "MISS"
+            look = f" look-alikes {r['lookalikes']} -> {r['after_experiment']}" if r["lookalikes"] else ""
+            print(f"{ok} seed {seed} {r['system']:<11} {r['log']:<5} truth {case:<15} named {r['named']:<15}"
+                  f" held-out shrink {r['shrink_pct']:6.1f}%  ({r['seconds']:.0f} s){look}  "
+                  f"top: {r['ranking'][:3]}", flush=True)
     print()
     print(confusion(results))
-    right = [r for r in results if r["named"] == r["truth"]]
-    eff_right = [r["shrink_pct"] for r in right if r["truth"] != "none"]
-    none_cases = [r for r in results if r["truth"] == "none"]
-    false_named = [r for r in none_cases if r["named"] != "none"]
-    hit = 100.0 * len(right) / max(len(results), 1)
-    med = float(np.median(eff_right)) if eff_right else float("nan")
-    print(f"\nright effect named: {len(right)}/{len(results)} = {hit:.0f}% (target >= 90%)")
-    print(f"median held-out shrink when right: {med:.1f}% (target >= 70%)")
-    print(f"false effects in none cases: {len(false_named)}/{len(none_cases)} (target 0)")
-    print(f"total {time.perf_counter() - t_all:.0f} s; logs and diagnoses in {top}")
+    s = summary(results)
+    print(f"\nright effect named: {s['right']}/{s['cases']} = {s['hit_pct']:.0f}% (target >= 95%)")
+    print(f"median held-out shrink when right: {s['median_shrink_pct']:.1f}% (target >= 85%)")
+    print(f"false effects in none cases: {s['false_in_none']}/{s['none_cases']} (target 0)")
+    print(f"look-alikes reported: {s['lookalike_cases']}; right by system {s['by_system']}, by log {s['by_log']}")
+    print(f"median diagnosis time {s['median_seconds']:.1f} s; total {time.perf_counter() - t_all:.0f} s; "
+          f"logs and diagnoses in {top}")
     if a.json:
         with open(a.json, "w") as fh:
-            json.dump({"results": results, "hit_pct": hit, "median_shrink_pct": med,
-                       "false_in_none": len(false_named)}, fh, indent=2)
+            json.dump({"results": results, **s}, fh, indent=2)
     if a.check:
-        ok = hit >= 90.0 and (not eff_right or med >= 70.0) and not false_named
+        ok = s["hit_pct"] >= a.min_hit and (np.isnan(s["median_shrink_pct"]) or s["median_shrink_pct"] >= a.min_shrink) \
+            and not s["false_in_none"]
         return 0 if ok else 1
     return 0
 
