@@ -109,6 +109,7 @@ const field fields[] = {
     {"controller", "algorithm", K_INT, T_INT, CF(algorithm), 1, 3},
     {"controller", "band_lower", K_LENGTH, T_DOUBLE, CF(band_lower_m), 0, 1},
     {"controller", "band_upper", K_LENGTH, T_DOUBLE, CF(band_upper_m), 0, 1},
+    {"controller", "chatter_max_per_min", K_INT, T_INT, CF(chatter_max_per_min), 0, 600},
     {"sensors", "height_lo", K_COUNTS, T_DOUBLE, SP(height_lo_counts), 0, 4095},
     {"sensors", "height_hi", K_COUNTS, T_DOUBLE, SP(height_hi_counts), 0, 4095},
     {"sensors", "height_lo", K_LENGTH, T_DOUBLE, SP(height_lo_m), -2, 2},
@@ -662,6 +663,7 @@ void plant_config_defaults(plant_config *c)
     s->noise_seed = 1;
 
     c->algorithm = 1;
+    c->chatter_max_per_min = -1; /* not given: the firmware's own default stays */
     c->band_lower_m = 15.6 * in;
     c->band_upper_m = 15.8 * in;
     c->base_load_n = 900.0 * lbf;

@@ -45,7 +45,7 @@ static int write_block(uint16_t addr, const uint16_t *w, uint16_t n, const char 
 }
 
 /* What a commissioning engineer writes: calibration, band, algorithm (and for algorithm 3 whether an
- * accumulator is fitted), accumulator charge. */
+ * accumulator is fitted), the chatter limit when the config gives one, accumulator charge. */
 int sim_commission(const plant_config *cfg, int algorithm, char *err, size_t len)
 {
     const plant_sensor_params *s = &cfg->sensors;
@@ -73,6 +73,10 @@ int sim_commission(const plant_config *cfg, int algorithm, char *err, size_t len
         return -1;
     /* Algorithm 3 is told whether the rig has an accumulator (the others know by their number). */
     if (write_u16(LEVELER_HR_ALG3_ACCUMULATOR, cfg->plant.acc_type != PLANT_ACC_NONE, "alg3_accumulator", err, len) != 0)
+        return -1;
+    if (cfg->chatter_max_per_min >= 0 &&
+        write_u16(LEVELER_HR_CHATTER_MAX_PER_MIN, (uint16_t)cfg->chatter_max_per_min, "chatter_max_per_min", err,
+                  len) != 0)
         return -1;
     uint16_t charge[2];
     put_i32(charge, round_i32(cfg->plant.acc_charge_pa));

@@ -247,19 +247,6 @@ static void score_run(const ctlbench_scenario *sc, const runlog_row *rows, size_
         m->rest_switchings_per_min = m->rest_switchings / ((sc->rest_to_s - sc->rest_from_s) / 60.0);
 }
 
-/* Algorithms 1 and 2 run as the thesis has them: no chatter fault to stop their hunting. */
-static int thesis_as_published(void *user, char *err, size_t err_len)
-{
-    (void)user;
-    uint16_t off = 0, reason = 0;
-    if (leveler_regs_write(LEVELER_TABLE_HOLDING_REGISTER, LEVELER_HR_CHATTER_MAX_PER_MIN, 1, &off, &reason) !=
-        LEVELER_REG_OK) {
-        snprintf(err, err_len, "firmware refused chatter_max_per_min = 0 (reason %u)", reason);
-        return -1;
-    }
-    return 0;
-}
-
 int ctlbench_run(const ctlbench_scenario *sc, int algorithm, const char *configs_dir, const char *log_path,
                  runlog_row *rows, size_t rows_cap, ctlbench_metrics *m, char *err, size_t err_len)
 {
@@ -276,6 +263,9 @@ int ctlbench_run(const ctlbench_scenario *sc, int algorithm, const char *configs
     cfg.plant.height_max_m = SPRING_MAX_M;
     cfg.sensors.noise_counts = sc->noise_counts;
     cfg.sensors.noise_seed = sc->noise_seed;
+    /* Algorithms 1 and 2 run as the thesis has them: no chatter fault to stop their hunting. */
+    if (algorithm != 3)
+        cfg.chatter_max_per_min = 0;
     runlog *rl = NULL;
     if (log_path) {
         runlog_options lo = {.path = log_path, .config_name = sc->name, .source = "sim"};
@@ -283,8 +273,7 @@ int ctlbench_run(const ctlbench_scenario *sc, int algorithm, const char *configs
             return -1;
     }
     sim_options so = {.config = &cfg, .algorithm = algorithm, .steps = sc->steps, .step_count = sc->step_count,
-                      .end_s = sc->end_s, .log = rl, .rows = rows, .rows_cap = rows_cap,
-                      .commission_extra = algorithm == 3 ? NULL : thesis_as_published};
+                      .end_s = sc->end_s, .log = rl, .rows = rows, .rows_cap = rows_cap};
     static sim_result res;
     int rc = sim_run(&so, &res, err, err_len);
     if (rl && runlog_close(rl) != 0 && rc == 0) {

@@ -19,6 +19,8 @@
 
 #include "plant.h"
 #include "simloop.h"
+#include "leveler/app.h"
+#include "leveler/status.h"
 
 #ifndef CONFIG_DIR
 #error CONFIG_DIR must point at host_sim/configs
@@ -463,6 +465,34 @@ static void test_accumulator_faster(void **state)
     assert_true(tube < without - 1.0);
 }
 
+/* [controller] chatter_max_per_min reaches the firmware's supervisor: algorithm 2
+ * with 2 counts of noise switches its compressor at the charge limit every few
+ * ticks, so the product default latches the chatter fault and a limit of 0 does not. */
+static uint16_t latched_after_noisy_run(const char *controller_extra)
+{
+    char text[1024];
+    snprintf(text, sizeof text,
+             "[config]\ninclude = %s/thesis-900lb-diaphragm.ini\n\n[sensors]\nnoise_counts = 2\n"
+             "noise_seed = 3\n\n[controller]\n%s",
+             CONFIG_DIR, controller_extra);
+    static plant_config cfg;
+    char err[1024];
+    assert_int_equal(plant_config_load(write_file("chatter.ini", text), &cfg, err, sizeof err), 0);
+    sim_options o = {.config = &cfg, .algorithm = 2, .end_s = 30.0};
+    static sim_result res;
+    assert_int_equal(sim_run(&o, &res, err, sizeof err), 0);
+    return leveler_app_status()->latched_fault_bits;
+}
+
+static void test_config_chatter_limit(void **state)
+{
+    (void)state;
+    const uint16_t chatter = (uint16_t)(1u << (LEVELER_FAULT_CHATTER - 1));
+    assert_true(latched_after_noisy_run("") & chatter);
+    assert_false(latched_after_noisy_run("chatter_max_per_min = 0\n") & chatter);
+    expect_error("[controller]\nchatter_max_per_min = 601\n", "chatter_max_per_min", NULL);
+}
+
 static int setup(void **state)
 {
     (void)state;
@@ -491,6 +521,7 @@ int main(void)
         cmocka_unit_test(test_firmware_equals_program_900),
         cmocka_unit_test(test_firmware_equals_program_1000),
         cmocka_unit_test(test_accumulator_faster),
+        cmocka_unit_test(test_config_chatter_limit),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -124,7 +124,8 @@ typedef struct {
 typedef struct {
     plant_params plant;
     plant_sensor_params sensors;
-    int algorithm; /* 1 or 2 */
+    int algorithm; /* 1, 2 or 3 */
+    int chatter_max_per_min; /* the supervisor's chatter limit written at start; -1 = firmware default */
     double band_lower_m;
     double band_upper_m;
     double base_load_n;

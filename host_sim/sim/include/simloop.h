@@ -34,9 +34,6 @@ typedef struct {
     runlog_row *rows;            /* optional caller buffer: one row per tick, t = 0 first */
     size_t rows_cap;
     void (*progress)(double t_s, double end_s, void *user); /* optional, about every simulated 5 % */
-    /* optional: more register writes after the commissioning (0, or -1 with a message in err) */
-    int (*commission_extra)(void *user, char *err, size_t err_len);
-    void *commission_user;
     void *progress_user;
 } sim_options;
 
