@@ -8,11 +8,11 @@
 extern const plant_fx_model truth_catalogue[];
 extern const int truth_catalogue_count;
 
-/* As diag_simulate (host_sim/diagnose/diag_shim.c), fx_kind naming a truth variant. */
+/* As diag_simulate (host_sim/diagnose/diag_shim.c), fx_kinds naming truth variants. */
 int truth_simulate(const char *config_path, int n, const double *t_s, const double *load_n,
-                   const int32_t *commands, const double *p1_track, int fx_kind, const double *fx_params,
+                   const int32_t *commands, const double *p1_track, const int32_t *fx_kinds, const double *fx_params,
                    const double *init, double *out, int32_t *cmd_out, char *err, int err_len)
 {
     return diag_run(truth_catalogue, truth_catalogue_count, config_path, n, t_s, load_n, commands, p1_track,
-                    fx_kind, fx_params, init, out, cmd_out, err, err_len);
+                    fx_kinds, fx_params, init, out, cmd_out, err, err_len);
 }

@@ -10,9 +10,9 @@
 
 #include "effects.h"
 
-/* diag_simulate() with fx_kind (0 = none) looked up in another table of effect models. */
+/* diag_simulate() with fx_kinds (0 = none) looked up in another table of effect models. */
 int diag_run(const plant_fx_model *table, int table_count, const char *config_path, int n, const double *t_s,
-             const double *load_n, const int32_t *commands, const double *p1_track, int fx_kind,
+             const double *load_n, const int32_t *commands, const double *p1_track, const int32_t *fx_kinds,
              const double *fx_params, const double *init, double *out, int32_t *cmd_out, char *err, int err_len);
 
 #endif /* LEVELER_DIAG_H */

@@ -1,6 +1,6 @@
 /*
  * ctypes entry point of the sim-to-real diagnosis (scripts/leveler/diagnose/cplant.py):
- * one call simulates one whole run of the C plant with one effect switched on,
+ * one call simulates one whole run of the C plant with up to two effects switched on,
  * either replaying logged actuator commands open loop or with the unchanged
  * firmware in the loop (hal_sim.c), on the simulator's one stepper (stepper.h).
  *
@@ -19,7 +19,7 @@
 #include "simloop.h"
 
 /* Version of this ABI; cplant.py refuses a library with another. */
-int diag_abi_version(void) { return 2; }
+int diag_abi_version(void) { return 3; }
 
 /* Loads a config file; 0 or -1 with the loader's file:line message in err. */
 int diag_config_check(const char *path, char *err, int err_len)
@@ -112,7 +112,8 @@ static int check_time_base(int n, const double *t_s, bool closed, char *err, int
  *   p1_track         replay only, may be NULL: where finite, the compressor runs while the
  *                    plant's P1 is below it instead of as logged (a log whose compressor
  *                    chatters faster than it samples: the replay regulates as the rig did)
- *   fx_kind, fx_params  effect id (effects.json; 0 = none), PLANT_FX_MAX_PARAMS doubles
+ *   fx_kinds, fx_params  PLANT_FX_MAX_MODELS effect ids (effects.json; 0 = none), for each
+ *                    PLANT_FX_MAX_PARAMS doubles: up to two effects at once (effects.h)
  *   init             height m, P2, P1, P3 Pa, motor speed rad/s at t_s[0]; NaN = the
  *                    config's (P3 only with an accumulator). Given (even all
  *                    NaN), the platform starts at rest and, closed loop, the firmware
@@ -123,22 +124,35 @@ static int check_time_base(int n, const double *t_s, bool closed, char *err, int
  * Returns 0, or -1 with a message in err.
  */
 int diag_simulate(const char *config_path, int n, const double *t_s, const double *load_n,
-                  const int32_t *commands, const double *p1_track, int fx_kind, const double *fx_params,
-                  const double *init, double *out, int32_t *cmd_out, char *err, int err_len)
+                  const int32_t *commands, const double *p1_track, const int32_t *fx_kinds,
+                  const double *fx_params, const double *init, double *out, int32_t *cmd_out, char *err, int err_len)
 {
     return diag_run(plant_fx_catalogue, plant_fx_catalogue_count, config_path, n, t_s, load_n, commands, p1_track,
-                    fx_kind, fx_params, init, out, cmd_out, err, err_len);
+                    fx_kinds, fx_params, init, out, cmd_out, err, err_len);
+}
+
+/* The models of fx_kinds (0: none); -1 with a message for an unknown id. */
+static int find_models(const plant_fx_model *table, int table_count, const int32_t *fx_kinds,
+                       const plant_fx_model *models[PLANT_FX_MAX_MODELS], char *err, int err_len)
+{
+    for (int i = 0; i < PLANT_FX_MAX_MODELS; i++) {
+        int kind = fx_kinds ? fx_kinds[i] : 0;
+        models[i] = plant_fx_find(table, table_count, kind);
+        if (kind != 0 && !models[i]) {
+            snprintf(err, (size_t)err_len, "effect %d: unknown", kind);
+            return -1;
+        }
+    }
+    return 0;
 }
 
 int diag_run(const plant_fx_model *table, int table_count, const char *config_path, int n, const double *t_s,
-             const double *load_n, const int32_t *commands, const double *p1_track, int fx_kind,
+             const double *load_n, const int32_t *commands, const double *p1_track, const int32_t *fx_kinds,
              const double *fx_params, const double *init, double *out, int32_t *cmd_out, char *err, int err_len)
 {
-    const plant_fx_model *model = plant_fx_find(table, table_count, fx_kind);
-    if (fx_kind != 0 && !model) {
-        snprintf(err, (size_t)err_len, "effect %d: unknown", fx_kind);
+    const plant_fx_model *models[PLANT_FX_MAX_MODELS];
+    if (find_models(table, table_count, fx_kinds, models, err, err_len) != 0)
         return -1;
-    }
     static plant_config cfg;
     static plant_fx f;
     if (plant_config_load(config_path, &cfg, err, (size_t)err_len) != 0)
@@ -151,8 +165,15 @@ int diag_run(const plant_fx_model *table, int table_count, const char *config_pa
     if (check_time_base(n, t_s, closed, err, err_len) != 0)
         return -1;
     plant_params p = initial_params(&cfg, init);
-    if (plant_fx_init(&f, &p, model, fx_params) != 0) {
-        snprintf(err, (size_t)err_len, "effect %s: a parameter is outside its range", model->name);
+    int rc = plant_fx_init_models(&f, &p, PLANT_FX_MAX_MODELS, models, fx_params);
+    if (rc != 0) {
+        if (rc == PLANT_FX_PAIR_REFUSED)
+            snprintf(err, (size_t)err_len, "effects %s and %s: cannot run together (one effect, or a shared state)",
+                     models[0]->name, models[1]->name);
+        else
+            snprintf(err, (size_t)err_len, "effect %s%s%s: a parameter is outside its range",
+                     models[0] ? models[0]->name : "", models[0] && models[1] ? "/" : "",
+                     models[1] ? models[1]->name : "");
         return -1;
     }
     if (init && isfinite(init[3]) && p.acc_type != PLANT_ACC_NONE)

@@ -1,6 +1,6 @@
 /*
  * The engine of unmodelled effects (effects.h): a plant plus extra states,
- * stepped by the plant's one RK4 step, with an effect model's corrections;
+ * stepped by the plant's one RK4 step, with up to two effect models' corrections;
  * and the building blocks the candidate and truth models share.
  */
 #include "effects.h"
@@ -18,29 +18,63 @@ const plant_fx_model *plant_fx_find(const plant_fx_model *table, int count, int 
 
 int plant_fx_init(plant_fx *f, const plant_params *p, const plant_fx_model *model, const double *params)
 {
+    return plant_fx_init_models(f, p, 1, &model, params);
+}
+
+/* Checks the models and places them in stage order; the number placed, or an error. */
+static int place_models(plant_fx *f, int n, const plant_fx_model *const *models, const double *params)
+{
+    static const double nominal[PLANT_FX_MAX_PARAMS];
+    unsigned used = 0;
+    for (int i = 0; i < n; i++) {
+        const plant_fx_model *m = models[i];
+        const double *q = params ? params + i * PLANT_FX_MAX_PARAMS : nominal;
+        if (!m)
+            continue;
+        if (f->nmodels == PLANT_FX_MAX_MODELS || (used & m->ops->uses) != 0)
+            return PLANT_FX_PAIR_REFUSED;
+        for (int j = 0; j < f->nmodels; j++)
+            if (f->model[j]->id == m->id)
+                return PLANT_FX_PAIR_REFUSED;
+        for (int k = 0; k < m->nparams; k++)
+            if (!(q[k] >= m->lo[k] && q[k] <= m->hi[k]))
+                return -1;
+        used |= m->ops->uses;
+        int at = f->nmodels++; /* insertion by stage, stable */
+        while (at > 0 && f->model[at - 1]->ops->stage > m->ops->stage) {
+            f->model[at] = f->model[at - 1];
+            memcpy(f->q[at], f->q[at - 1], sizeof f->q[at]);
+            at--;
+        }
+        f->model[at] = m;
+        memcpy(f->q[at], q, sizeof f->q[at]);
+    }
+    return 0;
+}
+
+int plant_fx_init_models(plant_fx *f, const plant_params *p, int n, const plant_fx_model *const *models,
+                         const double *params)
+{
     memset(f, 0, sizeof *f);
     plant_init(&f->pl, p);
-    f->model = model;
-    if (params)
-        memcpy(f->q, params, sizeof f->q);
-    if (model) {
-        for (int i = 0; i < model->nparams; i++)
-            if (!(f->q[i] >= model->lo[i] && f->q[i] <= model->hi[i]))
-                return -1;
-    }
+    int rc = place_models(f, n, models, params);
+    if (rc != 0)
+        return rc;
     f->y_ref_m = p->init_height_m;
     f->xe[PLANT_FX_XE_T2] = f->xe[PLANT_FX_XE_T1] = f->xe[PLANT_FX_XE_TW] = p->temperature_k;
     f->pending_s[0] = f->pending_s[1] = -1.0;
-    if (model && model->ops->init)
-        model->ops->init(f);
+    for (int i = 0; i < f->nmodels; i++)
+        if (f->model[i]->ops->init)
+            f->model[i]->ops->init(f, f->q[i]);
     return 0;
 }
 
 void plant_fx_set_inputs(plant_fx *f, const plant_inputs *in)
 {
     plant_inputs eff = *in;
-    if (f->model && f->model->ops->inputs)
-        f->model->ops->inputs(f, &eff);
+    for (int i = 0; i < f->nmodels; i++)
+        if (f->model[i]->ops->inputs)
+            f->model[i]->ops->inputs(f, f->q[i], &eff);
     f->cmd[0] = in->spring_valve; /* the commanded states (valve models) */
     f->cmd[1] = in->vent_valve;
     plant_set_inputs(&f->pl, &eff);
@@ -53,8 +87,9 @@ static void fx_rhs(const void *ctx, const double *x, double *dx)
     plant_derivatives(&f->pl, x, dx, &fl);
     for (int i = 0; i < PLANT_FX_NX; i++)
         dx[PLANT_NX + i] = 0.0;
-    if (f->model->ops->rhs)
-        f->model->ops->rhs(f, x, dx, &fl);
+    for (int i = 0; i < f->nmodels; i++)
+        if (f->model[i]->ops->rhs)
+            f->model[i]->ops->rhs(f, f->q[i], x, dx, &fl);
 }
 
 /* The plant's RK4 step (plant_rk4_step) over the plant and the extra states. */
@@ -67,23 +102,28 @@ static void rk4_step(plant_fx *f, double h)
     memcpy(x, pl->x, sizeof pl->x);
     memcpy(x + PLANT_NX, f->xe, sizeof f->xe);
     plant_rk4_step(pl, x, N, fx_rhs, f, h);
-    if (f->model->ops->after_step)
-        f->model->ops->after_step(f, x, vel, h);
+    for (int i = 0; i < f->nmodels; i++)
+        if (f->model[i]->ops->after_step)
+            f->model[i]->ops->after_step(f, f->q[i], x, vel, h);
     memcpy(pl->x, x, sizeof pl->x);
     memcpy(f->xe, x + PLANT_NX, sizeof f->xe);
 }
 
 void plant_fx_advance(plant_fx *f, double dt_s, int substeps)
 {
-    if (!f->model) {
+    if (f->nmodels == 0) {
         plant_advance(&f->pl, dt_s, substeps);
     } else {
-        if (f->model->ops->substeps)
-            substeps = f->model->ops->substeps(f, dt_s, substeps);
-        if (substeps < 1)
-            substeps = 1;
-        for (int i = 0; i < substeps; i++)
-            rk4_step(f, dt_s / substeps);
+        int n = substeps; /* the most any model needs */
+        for (int i = 0; i < f->nmodels; i++)
+            if (f->model[i]->ops->substeps) {
+                int need = f->model[i]->ops->substeps(f, f->q[i], dt_s, substeps);
+                n = need > n ? need : n;
+            }
+        if (n < 1)
+            n = 1;
+        for (int i = 0; i < n; i++)
+            rk4_step(f, dt_s / n);
     }
     /* the transducer filters start from the first tick's values */
     double raw[4];
@@ -94,15 +134,17 @@ void plant_fx_advance(plant_fx *f, double dt_s, int substeps)
             f->sens[c][0] = f->sens[c][1] = raw[c];
         f->sens_ready = true;
     }
-    if (f->model && f->model->ops->after_tick)
-        f->model->ops->after_tick(f, raw, dt_s, first);
+    for (int i = 0; i < f->nmodels; i++)
+        if (f->model[i]->ops->after_tick)
+            f->model[i]->ops->after_tick(f, f->q[i], raw, dt_s, first);
 }
 
 void plant_fx_sensed(const plant_fx *f, double out[4])
 {
     plant_sensed(&f->pl, out);
-    if (f->model && f->model->ops->sensed && f->sens_ready)
-        f->model->ops->sensed(f, out);
+    for (int i = 0; i < f->nmodels; i++)
+        if (f->model[i]->ops->sensed && f->sens_ready)
+            f->model[i]->ops->sensed(f, f->q[i], out);
 }
 
 /* ---- building blocks ---- */

@@ -3,10 +3,18 @@
  * sim-to-real diagnosis (docs/diagnosis.md, scripts/leveler/diagnose/).
  *
  * A plant_fx is a plant plus a few extra states and per-tick memories, driven
- * by one effect model. Without a model (or with every parameter at its
- * nominal value) it reproduces the nominal plant step for step: a model only
- * ADDS corrections to plant_derivatives()'s result, using the flows it
- * reports, and steps through the plant's one RK4 step (plant_rk4_step).
+ * by up to two effect models at once (a pair: two effects in one rig). Without
+ * a model (or with every parameter at its nominal value) it reproduces the
+ * nominal plant step for step: a model only ADDS corrections to
+ * plant_derivatives()'s result, using the flows it reports, and steps through
+ * the plant's one RK4 step (plant_rk4_step).
+ *
+ * Two models compose in the order of their stage (plant_fx_stage): the
+ * geometry first (the area scales dV2), then the gas (the thermal balance
+ * rewrites dP from that dV2), forces on the guide, additive flow corrections
+ * (valve, leak), the junction's volume (the line scales the whole dP1), and the
+ * transducers last. Each model declares the state slots and memories it owns
+ * (plant_fx_ops.uses); a pair that would share one is refused.
  *
  * The candidate effects the diagnosis fits are catalogued once, in
  * effects.json (names, ids, parameters, ranges): the table
@@ -21,30 +29,56 @@
 #include "plant.h"
 
 #define PLANT_FX_MAX_PARAMS 8
-#define PLANT_FX_NX 6            /* extra ODE states */
+#define PLANT_FX_MAX_MODELS 2    /* effects at once */
+#define PLANT_FX_NX 8            /* extra ODE states */
 #define PLANT_FX_DELAY_TICKS 128 /* transport-delay memory, ticks */
 
 /* Extra state slots (a model uses the ones it needs). */
-enum { PLANT_FX_XE_T2 = 0, PLANT_FX_XE_T1 = 1, PLANT_FX_XE_TW = 2, PLANT_FX_XE_Z = 3, PLANT_FX_XE_AUX = 4 };
+enum {
+    PLANT_FX_XE_T2 = 0, PLANT_FX_XE_T1 = 1, PLANT_FX_XE_TW = 2, PLANT_FX_XE_Z = 3, PLANT_FX_XE_AUX = 4,
+    PLANT_FX_XE_VALVE = 6 /* two: spring and vent valve opening fractions */
+};
+
+/* What a model owns (plant_fx_ops.uses): two models of a pair may not share any. */
+enum {
+    PLANT_FX_USES_GAS_T = 1 << 0,   /* xe T2, T1: gas temperatures */
+    PLANT_FX_USES_WALL_T = 1 << 1,  /* xe TW */
+    PLANT_FX_USES_Z = 1 << 2,       /* xe Z */
+    PLANT_FX_USES_AUX = 1 << 3,     /* xe AUX */
+    PLANT_FX_USES_VALVE_X = 1 << 4, /* xe VALVE, VALVE + 1 */
+    PLANT_FX_USES_VALVE_MEM = 1 << 5, /* eff[], pending_s[]: delayed valve states */
+    PLANT_FX_USES_DELAY = 1 << 6,   /* mc_buf: the compressor flow's delay line */
+    PLANT_FX_USES_SENS = 1 << 7     /* sens[][]: the transducer filters, and what they report */
+};
+
+/* Where a model's corrections go in the sum (see above); lower first. */
+typedef enum {
+    PLANT_FX_STAGE_GEOMETRY = 0, PLANT_FX_STAGE_GAS, PLANT_FX_STAGE_FORCE, PLANT_FX_STAGE_FLOW,
+    PLANT_FX_STAGE_VOLUME, PLANT_FX_STAGE_SENSOR
+} plant_fx_stage;
 
 typedef struct plant_fx plant_fx;
 
-/* What an effect does, as functions; any may be NULL (nothing to do). */
+/* What an effect does, as functions; any may be NULL (nothing to do). q: the
+ * model's own parameters (plant_fx.q of its slot). */
 typedef struct {
-    void (*init)(plant_fx *f);
+    plant_fx_stage stage;
+    unsigned uses; /* PLANT_FX_USES_* */
+    void (*init)(plant_fx *f, const double *q);
     /* commanded -> effective inputs, at the plant's current time */
-    void (*inputs)(plant_fx *f, plant_inputs *effective);
-    /* corrections to plant_derivatives()'s dx (fl: its flows) at state x (plant + extra) */
-    void (*rhs)(const plant_fx *f, const double *x, double *dx, const plant_flows *fl);
+    void (*inputs)(plant_fx *f, const double *q, plant_inputs *effective);
+    /* corrections to dx (plant_derivatives()'s, with the models before this one's
+     * corrections; fl: the nominal flows) at state x (plant + extra) */
+    void (*rhs)(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl);
     /* after each RK4 step: vel0 the velocity at its start */
-    void (*after_step)(plant_fx *f, double *x, double vel0, double h);
+    void (*after_step)(plant_fx *f, const double *q, double *x, double vel0, double h);
     /* after each tick of dt_s: memories and filters; raw: what ideal
      * transducers read now; first: the first tick (the filters start from raw) */
-    void (*after_tick)(plant_fx *f, const double raw[4], double dt_s, bool first);
+    void (*after_tick)(plant_fx *f, const double *q, const double raw[4], double dt_s, bool first);
     /* what the transducers report, from the filtered values in out */
-    void (*sensed)(const plant_fx *f, double out[4]);
+    void (*sensed)(const plant_fx *f, const double *q, double out[4]);
     /* RK4 substeps over dt_s that keep a stiff extension stable (at least the given) */
-    int (*substeps)(const plant_fx *f, double dt_s, int substeps);
+    int (*substeps)(const plant_fx *f, const double *q, double dt_s, int substeps);
 } plant_fx_ops;
 
 /* One catalogued effect. */
@@ -64,8 +98,9 @@ const plant_fx_model *plant_fx_find(const plant_fx_model *table, int count, int 
 
 struct plant_fx {
     plant pl;
-    const plant_fx_model *model; /* NULL: the nominal plant */
-    double q[PLANT_FX_MAX_PARAMS];
+    int nmodels;                 /* 0: the nominal plant */
+    const plant_fx_model *model[PLANT_FX_MAX_MODELS]; /* in stage order */
+    double q[PLANT_FX_MAX_MODELS][PLANT_FX_MAX_PARAMS];
     double xe[PLANT_FX_NX];
     double y_ref_m;            /* height the area corrections are centred on */
     /* valve delays: commanded and effective states, pending switch time */
@@ -82,6 +117,13 @@ struct plant_fx {
 
 /* model NULL = nominal. Returns 0, or -1 if a parameter is outside the model's range. */
 int plant_fx_init(plant_fx *f, const plant_params *p, const plant_fx_model *model, const double *params);
+/* Up to PLANT_FX_MAX_MODELS models at once (NULL entries skipped), params
+ * PLANT_FX_MAX_PARAMS doubles per entry, in the entries' order. Returns 0; -1
+ * if a parameter is outside its model's range; PLANT_FX_PAIR_REFUSED if two
+ * models are one effect or share a state slot or memory (plant_fx_ops.uses). */
+#define PLANT_FX_PAIR_REFUSED (-2)
+int plant_fx_init_models(plant_fx *f, const plant_params *p, int n, const plant_fx_model *const *models,
+                         const double *params);
 /* Inputs for the next steps (valve delays act here, at the plant's current time). */
 void plant_fx_set_inputs(plant_fx *f, const plant_inputs *in);
 /* RK4 over dt_s in substeps, extra states included; then the per-tick memories. */

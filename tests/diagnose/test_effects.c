@@ -3,7 +3,11 @@
  * every candidate and truth variant integrates a charge/rest/vent cycle to
  * finite states; parameters at "off" give the nominal plant exactly; a
  * parameter outside its range is refused; the leak empties the spring and a
- * closed plant without effects keeps its mass.
+ * closed plant without effects keeps its mass. Pairs (two effects at once):
+ * every pair of candidates and of truth variants stays finite; a pair whose
+ * second effect is at its nominal values is the single effect bit for bit (in
+ * either order); a leak with a sensor offset reads the leak-only plant plus the
+ * offset; pairs that share a state or are one effect twice are refused.
  */
 #include <math.h>
 #include <setjmp.h>
@@ -180,6 +184,119 @@ static void test_leak_empties_and_closed_plant_keeps_mass(void **state)
     assert_true(leak.pl.x[PLANT_X_P2] < p_leak - 1000.0);       /* the leak lost pressure */
 }
 
+
+/* Every parameter set here is "on"; per id, for pairs. */
+static const double *on_params(bool is_truth, int id)
+{
+    static const double cand[8][PLANT_FX_MAX_PARAMS] = {
+        {0}, {5.0}, {2.0, -50.0, 0.03}, {100.0, 50.0, 0.005}, {0.1, 0.2, 0.3, 0.8},
+        {0.1, -1.5e-4, 2e-4, 0.5}, {2e-8}, {0.3, 0.1, 2000.0, 0.001}};
+    static const double tru[8][PLANT_FX_MAX_PARAMS] = {
+        {0}, {8.0, 300.0, 10.0}, {0.05, -0.03, 0.0, 0.04, -0.05}, {100.0, 60.0, 0.004, 2e5, 2000.0},
+        {0.1, 0.15, 0.3, 0.8}, {1e-4, 1e-8, 0.6}, {1e-16}, {0.3, 0.15, 0.1, 3000.0, 0.005, 5e-4}};
+    return is_truth ? tru[id] : cand[id];
+}
+
+static void test_every_pair_stays_finite(void **state)
+{
+    (void)state;
+    plant_params p = thesis();
+    for (int t = 0; t < 2; t++)
+        for (int a = THERMAL; a <= SENSOR_LAG; a++)
+            for (int b = a + 1; b <= SENSOR_LAG; b++) {
+                const plant_fx_model *m[2] = {t ? truth(a) : candidate(a), t ? truth(b) : candidate(b)};
+                double q[2 * PLANT_FX_MAX_PARAMS];
+                memcpy(q, on_params(t, a), PLANT_FX_MAX_PARAMS * sizeof q[0]);
+                memcpy(q + PLANT_FX_MAX_PARAMS, on_params(t, b), PLANT_FX_MAX_PARAMS * sizeof q[0]);
+                static plant_fx f;
+                assert_int_equal(plant_fx_init_models(&f, &p, 2, m, q), 0);
+                cycle(&f);
+                assert_finite(&f);
+            }
+}
+
+/* Same plant state and same sensed values, bit for bit. */
+static void assert_same(const plant_fx *a, const plant_fx *b)
+{
+    for (int s = 0; s < PLANT_NX; s++)
+        assert_true(a->pl.x[s] == b->pl.x[s]);
+    double sa[4], sb[4];
+    plant_fx_sensed(a, sa);
+    plant_fx_sensed(b, sb);
+    for (int c = 0; c < 4; c++)
+        assert_true(sa[c] == sb[c] || (isnan(sa[c]) && isnan(sb[c])));
+}
+
+/* A pair with one effect "on" and the other at its nominal ("off") values is
+ * the single "on" effect, whichever comes first in the call. */
+static void test_pair_with_a_nominal_second_is_the_single(void **state)
+{
+    (void)state;
+    static const double off[8][PLANT_FX_MAX_PARAMS] = {
+        {0}, {0}, {0}, {0, 0, 0.005}, {0, 0, 0, 1.0}, {0, 0}, {0}, {0}};
+    plant_params p = thesis();
+    for (int a = THERMAL; a <= SENSOR_LAG; a++)
+        for (int b = THERMAL; b <= SENSOR_LAG; b++) {
+            if (a == b)
+                continue;
+            static plant_fx single, pair;
+            assert_int_equal(plant_fx_init(&single, &p, candidate(a), on_params(false, a)), 0);
+            const plant_fx_model *m[2] = {candidate(b), candidate(a)};
+            double q[2 * PLANT_FX_MAX_PARAMS];
+            memcpy(q, off[b], PLANT_FX_MAX_PARAMS * sizeof q[0]);
+            memcpy(q + PLANT_FX_MAX_PARAMS, on_params(false, a), PLANT_FX_MAX_PARAMS * sizeof q[0]);
+            assert_int_equal(plant_fx_init_models(&pair, &p, 2, m, q), 0);
+            cycle(&single);
+            cycle(&pair);
+            assert_same(&single, &pair);
+        }
+}
+
+/* A leak and a sensor's P2 offset act independently: the pair reads the
+ * leak-only plant's P2 plus the offset, and the leak has lost air against the
+ * nominal plant (so the pair did act twice): the platform sits lower (its
+ * pressure is held by the load). */
+static void test_leak_and_sensor_offset_add_up(void **state)
+{
+    (void)state;
+    plant_params p = thesis();
+    const double offset_pa = 2500.0;
+    static plant_fx nominal, leak, pair;
+    const double k[PLANT_FX_MAX_PARAMS] = {2e-8};
+    double q[2 * PLANT_FX_MAX_PARAMS] = {0};
+    q[0] = 2e-8;
+    q[PLANT_FX_MAX_PARAMS + 2] = offset_pa;
+    const plant_fx_model *m[2] = {candidate(LEAK), candidate(SENSOR_LAG)};
+    assert_int_equal(plant_fx_init(&nominal, &p, NULL, NULL), 0);
+    assert_int_equal(plant_fx_init(&leak, &p, candidate(LEAK), k), 0);
+    assert_int_equal(plant_fx_init_models(&pair, &p, 2, m, q), 0);
+    cycle(&nominal);
+    cycle(&leak);
+    cycle(&pair);
+    double s_nom[4], s_leak[4], s_pair[4];
+    plant_fx_sensed(&nominal, s_nom);
+    plant_fx_sensed(&leak, s_leak);
+    plant_fx_sensed(&pair, s_pair);
+    assert_true(s_pair[1] == s_leak[1] + offset_pa);
+    assert_true(s_pair[0] == s_leak[0]);
+    assert_true(s_leak[0] < s_nom[0] - 1e-3);
+}
+
+static void test_pairs_that_cannot_run_together_are_refused(void **state)
+{
+    (void)state;
+    plant_params p = thesis();
+    static plant_fx f;
+    const plant_fx_model *same[2] = {candidate(LEAK), candidate(LEAK)};
+    const plant_fx_model *two_sensors[2] = {candidate(SENSOR_LAG), truth(SENSOR_LAG)};
+    const plant_fx_model *two_tubes[2] = {candidate(LINE_DELAY), truth(LINE_DELAY)};
+    const plant_fx_model *three[3] = {candidate(LEAK), candidate(AREA), candidate(THERMAL)};
+    assert_int_equal(plant_fx_init_models(&f, &p, 2, same, NULL), PLANT_FX_PAIR_REFUSED);
+    assert_int_equal(plant_fx_init_models(&f, &p, 2, two_sensors, NULL), PLANT_FX_PAIR_REFUSED);
+    assert_int_equal(plant_fx_init_models(&f, &p, 2, two_tubes, NULL), PLANT_FX_PAIR_REFUSED);
+    assert_int_equal(plant_fx_init_models(&f, &p, 3, three, NULL), PLANT_FX_PAIR_REFUSED);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -188,6 +305,10 @@ int main(void)
         cmocka_unit_test(test_out_of_range_is_refused),
         cmocka_unit_test(test_line_tube_matches_the_truth_tube),
         cmocka_unit_test(test_leak_empties_and_closed_plant_keeps_mass),
+        cmocka_unit_test(test_every_pair_stays_finite),
+        cmocka_unit_test(test_pair_with_a_nominal_second_is_the_single),
+        cmocka_unit_test(test_leak_and_sensor_offset_add_up),
+        cmocka_unit_test(test_pairs_that_cannot_run_together_are_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -17,7 +17,7 @@ from .model import CLOSED_LOOP, Simulator, Trace
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 CONFIG_DIR = os.path.join(ROOT, "host_sim", "configs")
-ABI = 2
+ABI = 3
 MAX_PARAMS = 8
 SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
 COMMANDS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
@@ -75,6 +75,19 @@ def _dptr(a):
 
 def _iptr(a):
     return a.ctypes.data_as(ctypes.POINTER(ctypes.c_int32))
+
+
+def _effect_arrays(kind, values):
+    """diag_simulate's fx_kinds and fx_params: an id with its list of values, or a
+    list of up to fx.MAX_AT_ONCE ids with a list of lists."""
+    if np.isscalar(kind):
+        kind, values = ([kind], [values]) if kind else ([], [])
+    kinds = np.zeros(fx.MAX_AT_ONCE, dtype=np.int32)
+    p = np.zeros((fx.MAX_AT_ONCE, MAX_PARAMS))
+    for i, (k, v) in enumerate(zip(kind, values)):
+        kinds[i] = k
+        p[i, :len(v)] = v
+    return kinds, np.ascontiguousarray(p.ravel())
 
 
 QUIET_MAX_S = 2.0       # the quiet start: at most this long
@@ -189,7 +202,7 @@ def _bind(f):
     f.restype = ctypes.c_int
     f.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double),
                   ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32),
-                  ctypes.POINTER(ctypes.c_double), ctypes.c_int,
+                  ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32),
                   ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
                   ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32),
                   ctypes.c_char_p, ctypes.c_int]
@@ -225,11 +238,12 @@ class CPlant(Simulator):
             raise DiagnoseInputError(err.value.decode(errors="replace"))
 
     def _call(self, config, t_s, load_n, commands, kind, values, init, track=None, fn=None):
+        """kind: an effect id (0 = none) and values its list, or up to two ids and
+        a list of lists (two effects at once)."""
         n = len(t_s)
         t = np.ascontiguousarray(t_s, dtype=np.float64)
         load = np.ascontiguousarray(load_n, dtype=np.float64)
-        p = np.zeros(MAX_PARAMS)
-        p[:len(values)] = values
+        kinds, p = _effect_arrays(kind, values)
         ini = np.ascontiguousarray(init, dtype=np.float64)
         out = np.empty((n, 4))
         cmd_out = np.empty((n, 4), dtype=np.int32)
@@ -241,7 +255,7 @@ class CPlant(Simulator):
         err = ctypes.create_string_buffer(512)
         rc = (fn or self.simulate_fn)(config_path(config).encode(), n, _dptr(t), _dptr(load),
                                       None if cmd is None else _iptr(cmd), None if trk is None else _dptr(trk),
-                                      kind, _dptr(p), _dptr(ini),
+                                      _iptr(kinds), _dptr(p), _dptr(ini),
                                     _dptr(out), _iptr(cmd_out), err, len(err))
         if rc != 0:
             raise RuntimeError(f"C plant: {err.value.decode(errors='replace')}")
@@ -301,19 +315,17 @@ class CPlant(Simulator):
         omega, p1_shift = self.start_motor_speed(config, run, list(init), duty)
         init[2] += p1_shift
         params = params or {}
-        if effect == "sensor_lag":
+        if "sensor_lag" in fx.parts(effect):
             # the log shows what the transducers read: the plant started at reading - offset
             init[0] -= params.get("h_offset_m", 0.0)
             init[1] -= params.get("p_offset_pa", 0.0)
         return init + [omega]
 
     def simulate(self, config, run, effect, params, mode):
-        if effect:
-            e = fx.get(effect)
-            values = [params.get(q.name, q.nominal) for q in e.params]
-            kind = e.effect_id
-        else:
-            values, kind = [], 0
+        """effect: a name, a pair "a+b" or None."""
+        singles = [fx.get(e) for e in fx.parts(effect)]
+        kind = [e.effect_id for e in singles]
+        values = [[params.get(q.name, q.nominal) for q in e.params] for e in singles]
         init = self.start_state(config, run, effect, params)
         if mode == CLOSED_LOOP:
             return self._closed_loop(config, run.t_s, run.load_n, kind, values, init)
@@ -351,10 +363,13 @@ class CPlant(Simulator):
 
     def generate(self, config, t_s, load_n, truth_effect, truth_params, seed=0):
         """Closed loop with a truth variant of the blind test (libleveler_truth.so, same
-        ids as the candidates): truth_params is the list of the variant's values.
-        The rig starts at rest: platform still, motor stopped."""
+        ids as the candidates): truth_params is the list of the variant's values (for
+        a pair "a+b", a list of the two lists). The rig starts at rest: platform
+        still, motor stopped."""
         if self.truth_fn is None:
             self.truth_fn = _bind(_library(find_truth_library()).truth_simulate)
-        kind = 0 if truth_effect in (None, "none") else fx.get(truth_effect).effect_id
+        names = fx.parts(truth_effect)
+        kind = [fx.get(e).effect_id for e in names]
+        values = list(truth_params or []) if len(names) > 1 else [list(truth_params or [])] * len(names)
         return self._closed_loop(config, np.asarray(t_s, dtype=float), load_n, kind,
-                                 list(truth_params or []), [np.nan] * 4 + [0.0], self.truth_fn)
+                                 values, [np.nan] * 4 + [0.0], self.truth_fn)

@@ -7,6 +7,10 @@ in physically bounded ranges. All parameters at their `nominal` value
 reproduce the nominal plant exactly. The order of `params` is the order of
 the doubles passed to the C plant. `lo`/`hi` are the fitting bounds (`fit` in
 the JSON); the C plant accepts the wider `range`.
+
+Two effects at once (a pair) are named "a+b", the leader first: their
+parameters are the two lists one after the other (parameter names are unique
+across the catalogue), and the C plant runs both models (effects.h).
 """
 import json
 import os
@@ -58,11 +62,40 @@ BY_NAME = {e.name: e for e in EFFECTS}
 NAMES = [e.name for e in EFFECTS]
 
 
-def get(name):
+SEP = "+"          # joins the names of a pair: "leak+sensor_lag"
+MAX_AT_ONCE = 2    # effects the C plant runs at once (PLANT_FX_MAX_MODELS)
+
+
+def _single(name):
     try:
         return BY_NAME[name]
     except KeyError:
         raise KeyError(f"unknown effect {name!r}; known: {', '.join(NAMES)}") from None
+
+
+def parts(name):
+    """The single effects of a name: () for None/"none", ("a", "b") for "a+b"."""
+    if not name or name == "none":
+        return ()
+    out = tuple(name.split(SEP))
+    if len(out) > MAX_AT_ONCE or len(set(out)) != len(out):
+        raise KeyError(f"{name!r}: at most {MAX_AT_ONCE} different effects at once")
+    return out
+
+
+def combine(names):
+    """The name of effects taken together, in the order given."""
+    return SEP.join(names)
+
+
+def get(name):
+    """A catalogued effect, or a pair "a+b" as one effect with both parameter lists."""
+    names = parts(name)
+    if len(names) == 1:
+        return _single(names[0])
+    singles = [_single(n) for n in names]
+    return Effect(combine(names), None, tuple(p for e in singles for p in e.params),
+                  " and ".join(e.doc for e in singles))
 
 
 # The fit's unit box: [0, 1] per parameter, log-mapped where the range spans decades.
