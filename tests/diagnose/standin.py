@@ -53,9 +53,10 @@ class StandIn(Simulator):
         return out, cmd
 
     def simulate(self, config, run, effect, params, mode):
-        leak = params.get("leak_area_m2", 0.0) * 1e-4 if effect == "leak" else 0.0
-        tau = params.get("tau_pressure_s", 0.0) if effect == "sensor_lag" else 0.0
-        off = params.get("p_offset_pa", 0.0) if effect == "sensor_lag" else 0.0
+        names = (effect or "").split("+")    # a pair "leak+sensor_lag" runs both
+        leak = params.get("leak_area_m2", 0.0) * 1e-4 if "leak" in names else 0.0
+        tau = params.get("tau_pressure_s", 0.0) if "sensor_lag" in names else 0.0
+        off = params.get("p_offset_pa", 0.0) if "sensor_lag" in names else 0.0
         sig, cmd = self._run(run.t_s, run.load_n, run.commands, leak, tau, off, mode == CLOSED_LOOP)
         return Trace(run.t_s, sig, cmd)
 

@@ -162,4 +162,21 @@ def test_noise_only_answers_none(tmp_path, capsys):
     rc, err = run_cli(args(logs, tmp_path / "out", "--effects", "leak,sensor_lag", "--fast"), capsys)
     assert rc == 0, err
     d = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
-    assert d["effect"] == "none"
+    assert d["effect"] == "none" and d["effects"] == []
+    assert not any(p["kept"] for p in d["pairs"])
+
+
+def test_two_effects_at_once_are_both_named(tmp_path, capsys):
+    """Truth: a leak and a lagging, offset pressure reading at once. The pair is
+    fitted on top of the leader and kept; the report names both."""
+    logs = make_logs(str(tmp_path), "leak+sensor_lag",
+                     {"leak_area_m2": 1e-7, "tau_pressure_s": 1.0, "p_offset_pa": 8000.0}, seed=5)
+    rc, err = run_cli(args(logs, tmp_path / "out", "--effects", "leak,sensor_lag,thermal", "--fast"), capsys)
+    assert rc == 0, err
+    d = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    assert sorted(d["effects"]) == ["leak", "sensor_lag"]
+    kept = [p for p in d["pairs"] if p["kept"]]
+    assert len(kept) == 1 and kept[0]["effects"] == d["effects"]
+    assert kept[0]["closes_pct_of_leader_gap"] >= 30.0 and kept[0]["delta_bic"] < 0.0
+    assert abs(d["shrink_pct"] - kept[0]["shrink_pct"]) < 1.0   # before/after is the pair's (every sample)
+    assert "Two effects at once" in (tmp_path / "out" / "report.html").read_text()

@@ -17,9 +17,16 @@ scored on it: the case counts as right only when that names the truth.
 Then: confusion matrix, hit rate, held-out shrink of the correctly named
 cases, false effects in `none` cases.
 
+Pair cases (--pairs per seed): two truth effects at once, each at a random
+strength within its range, the pair rotating over all 21 so that no two cases
+of a run repeat one. Scored "both among the top two": the combination the
+diagnosis kept, else its leader and runner-up.
+
 Targets (docs/diagnosis.md): >= 95 % named right, median shrink >= 85 % when
-right, no effect named in a `none` case.
+right, no effect named in a `none` case; pairs: both among the top two in
+>= 80 % (8 of 10).
 """
+import itertools
 import argparse
 import json
 import os
@@ -41,6 +48,8 @@ from .model import make_simulator
 LB = thesis.N_PER_LBF
 CONFIG = "thesis-900lb"
 CASES = fx.NAMES + ["none"]
+PAIRS = [fx.combine(p) for p in itertools.combinations(fx.NAMES, 2)]
+PAIR_STRIDE = 8     # coprime with the 21 pairs: consecutive pair cases visit them all
 # system: (config, base lb, calibration steps lb, held-out step lb); loaded states
 # stay in one hysteresis band of the thesis (1050..1150 lb at 900, >= 1150 lb at 1000)
 SYSTEMS = {
@@ -89,10 +98,16 @@ def schedules(rng, system):
     ]
 
 
-def case_kind(seed, case):
-    """System and log kind of a case: every seed covers all of them, rotating."""
-    k = seed * 7 + CASES.index(case)
+def case_kind(seed, slot):
+    """System and log kind of a case (its slot: CASES' index, then the pair cases
+    after them): every seed covers all of them, rotating."""
+    k = seed * 7 + slot
     return list(SYSTEMS)[k % len(SYSTEMS)], list(LOG_KINDS)[(k // len(SYSTEMS)) % len(LOG_KINDS)]
+
+
+def pair_case(seed, j, per_seed):
+    """The j-th pair case of a seed."""
+    return PAIRS[((seed - 1) * per_seed + j) * PAIR_STRIDE % len(PAIRS)]
 
 
 def rig_config(folder, system, seed):
@@ -144,10 +159,12 @@ def write_truth_log(sim, path, rig, system, steps, end, effect, params, kind, rn
     runs.write_run(path, ts, sig, load[idx], cmds, SYSTEMS[system][0], "rig")
 
 
-def generate_case(sim, effect, seed, folder, system="900lb", kind="100Hz"):
-    """Writes cal1.csv, cal2.csv, hold.csv; returns the truth parameters."""
-    rng = np.random.default_rng(seed * 1000 + CASES.index(effect))
-    params = truth_params(effect, rng)
+def generate_case(sim, effect, seed, folder, system="900lb", kind="100Hz", slot=None):
+    """Writes cal1.csv, cal2.csv, hold.csv; returns the truth parameters (for a
+    pair "a+b" the two lists)."""
+    rng = np.random.default_rng(seed * 1000 + (CASES.index(effect) if slot is None else slot))
+    names = fx.parts(effect)
+    params = [truth_params(e, rng) for e in names] if len(names) > 1 else truth_params(effect, rng)
     rig = rig_config(os.path.dirname(os.path.abspath(folder)), system, seed)
     for name, steps, end in schedules(rng, system):
         write_truth_log(sim, os.path.join(folder, f"{name}.csv"), rig, system, steps, end, effect, params,
@@ -187,7 +204,7 @@ def run_experiment(sim, folder, d, case, params, system, kind, seed, extra):
     Returns the new verdict."""
     logs = os.path.join(folder, "logs")
     steps, end = read_schedule(os.path.join(folder, "diagnosis", "experiment.csv"))
-    rng = np.random.default_rng(seed * 1000 + CASES.index(case) + 500)
+    rng = np.random.default_rng(seed * 1000 + CASES.index(case) + 500)   # single cases only
     rig = os.path.join(folder, "rig.ini")
     write_truth_log(sim, os.path.join(logs, "experiment.csv"), rig, system, steps, end, case, params, kind, rng)
     group = ",".join(d["cannot_tell_apart"])
@@ -196,13 +213,14 @@ def run_experiment(sim, folder, d, case, params, system, kind, seed, extra):
     return d2["effect"]
 
 
-def run_case(sim, top, seed, case, index, extra, force=(None, None)):
-    system, kind = case_kind(seed, case)
+def run_case(sim, top, seed, case, index, extra, force=(None, None), slot=None):
+    """One case: a single effect (slot None: its place in CASES) or a pair (slot given)."""
+    system, kind = case_kind(seed, CASES.index(case) if slot is None else slot)
     system, kind = force[0] or system, force[1] or kind
     folder = os.path.join(top, f"seed{seed}-{index:02d}")
     logs = os.path.join(folder, "logs")
     os.makedirs(logs, exist_ok=True)
-    params = generate_case(sim, case, seed, logs, system, kind)
+    params = generate_case(sim, case, seed, logs, system, kind, slot)
     # the sealed label: beside the logs, never passed to the diagnosis
     with open(os.path.join(folder, "label.sealed.json"), "w") as fh:
         json.dump({"effect": case, "truth_params": params, "seed": seed, "system": system, "log": kind}, fh)
@@ -211,8 +229,14 @@ def run_case(sim, top, seed, case, index, extra, force=(None, None)):
     r = {"seed": seed, "truth": case, "system": system, "log": kind, "named": d["effect"],
          "shrink_pct": d["shrink_pct"], "margin_pct": d["margin_pct"], "seconds": time.perf_counter() - t0,
          "lookalikes": d.get("cannot_tell_apart", []),
-         "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]]}
+         "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]],
+         "effects": d.get("effects", []),
+         "pairs": [(x["effect"], round(x["shrink_pct"], 1), x["kept"]) for x in d.get("pairs", [])]}
     r["verdict"] = d["effect"]
+    if slot is not None:        # a pair: both among the top two (the kept pair, else leader and runner-up)
+        r["top_two"] = r["effects"] if len(r["effects"]) == 2 else [x[0] for x in r["ranking"][:2]]
+        r["both_top_two"] = set(fx.parts(case)) == set(r["top_two"])
+        return r
     if r["lookalikes"]:
         r["after_experiment"] = (run_experiment(sim, folder, d, case, params, system, kind, seed, extra)
                                  if case in r["lookalikes"] else "truth not among them")
@@ -228,6 +252,16 @@ def confusion(results, key="verdict"):
     return "\n".join(lines)
 
 
+def pair_summary(results):
+    """Pair cases: both among the top two; both named (a kept pair); the leader one of the two."""
+    n = len(results)
+    both = sum(1 for r in results if r["both_top_two"])
+    kept = sum(1 for r in results if len(r["effects"]) == 2 and set(r["effects"]) == set(fx.parts(r["truth"])))
+    lead = sum(1 for r in results if r["named"] in fx.parts(r["truth"]))
+    return {"pair_cases": n, "pairs_both_top_two": both, "pairs_both_kept": kept, "pairs_leader_right": lead,
+            "pairs_hit_pct": 100.0 * both / max(n, 1)}
+
+
 def summary(results):
     """The figures of the targets, overall and per system and log kind."""
     right = [r for r in results if r["verdict"] == r["truth"]]
@@ -237,6 +271,8 @@ def summary(results):
            "median_shrink_pct": float(np.median(eff_right)) if eff_right else float("nan"),
            "false_in_none": sum(1 for r in none_cases if r["verdict"] != "none"), "none_cases": len(none_cases),
            "lookalike_cases": sum(1 for r in results if r["lookalikes"]),
+           # a second effect kept where there is one effect (or none)
+           "false_second": sum(1 for r in results if len(r.get("effects", [])) > 1),
            "median_seconds": float(np.median([r["seconds"] for r in results])) if results else float("nan")}
     for key in ("system", "log"):
         out[f"by_{key}"] = {v: f"{sum(1 for r in right if r[key] == v)}/{sum(1 for r in results if r[key] == v)}"
@@ -258,6 +294,9 @@ def main(argv=None):
     ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
     ap.add_argument("--min-hit", type=float, default=95.0, help="--check: least %% named right")
     ap.add_argument("--min-shrink", type=float, default=85.0, help="--check: least median shrink %% when right")
+    ap.add_argument("--pairs", type=int, default=2, help="pair cases per seed (default 2)")
+    ap.add_argument("--min-pairs", type=float, default=80.0,
+                    help="--check: least %% of pair cases with both effects among the top two")
     a = ap.parse_args(argv)
     cases = [c for c in a.cases.split(",") if c]
     for c in cases:
@@ -267,32 +306,48 @@ def main(argv=None):
     extra = ["--fast"] if a.fast else []
     top = a.keep or tempfile.mkdtemp(prefix="leveler-blindtest-")
     os.makedirs(top, exist_ok=True)
-    results = []
+    results, pair_results = [], []
     t_all = time.perf_counter()
     for seed in range(a.first_seed, a.first_seed + a.seeds):
         for case in cases:
-            r = run_case(sim, top, seed, case, len(results), extra, (a.system, a.log))
+            r = run_case(sim, top, seed, case, len(results) + len(pair_results), extra, (a.system, a.log))
             results.append(r)
             ok = "ok " if r["verdict"] == case else "MISS"
             look = f" look-alikes {r['lookalikes']} -> {r['after_experiment']}" if r["lookalikes"] else ""
-            print(f"{ok} seed {seed} {r['system']:<11} {r['log']:<5} truth {case:<15} named {r['named']:<15}"
+            second = f" + {r['effects'][1]}" if len(r["effects"]) > 1 else ""
+            print(f"{ok} seed {seed} {r['system']:<11} {r['log']:<5} truth {case:<15} named {r['named'] + second:<15}"
                   f" held-out shrink {r['shrink_pct']:6.1f}%  ({r['seconds']:.0f} s){look}  "
                   f"top: {r['ranking'][:3]}", flush=True)
+        for j in range(a.pairs):
+            case = pair_case(seed, j, a.pairs)
+            r = run_case(sim, top, seed, case, len(results) + len(pair_results), extra, (a.system, a.log),
+                         slot=len(CASES) + j)
+            pair_results.append(r)
+            print(f"{'ok ' if r['both_top_two'] else 'MISS'} seed {seed} {r['system']:<11} {r['log']:<5} "
+                  f"truth {case:<26} named {' + '.join(r['effects']) or 'none':<26} top two {r['top_two']} "
+                  f"held-out shrink {r['shrink_pct']:6.1f}%  ({r['seconds']:.0f} s)  top: {r['ranking'][:3]}  "
+                  f"pairs: {r['pairs']}", flush=True)
     print()
     print(confusion(results))
     s = summary(results)
+    s.update(pair_summary(pair_results))
     print(f"\nright effect named: {s['right']}/{s['cases']} = {s['hit_pct']:.0f}% (target >= 95%)")
     print(f"median held-out shrink when right: {s['median_shrink_pct']:.1f}% (target >= 85%)")
     print(f"false effects in none cases: {s['false_in_none']}/{s['none_cases']} (target 0)")
     print(f"look-alikes reported: {s['lookalike_cases']}; right by system {s['by_system']}, by log {s['by_log']}")
+    print(f"a second effect kept in single or none cases: {s['false_second']}/{s['cases']}")
+    if pair_results:
+        print(f"pairs, both effects among the top two: {s['pairs_both_top_two']}/{s['pair_cases']} "
+              f"(target >= 80%, 8 of 10); both named (pair kept): {s['pairs_both_kept']}; "
+              f"leader one of the two: {s['pairs_leader_right']}")
     print(f"median diagnosis time {s['median_seconds']:.1f} s; total {time.perf_counter() - t_all:.0f} s; "
           f"logs and diagnoses in {top}")
     if a.json:
         with open(a.json, "w") as fh:
-            json.dump({"results": results, **s}, fh, indent=2)
+            json.dump({"results": results, "pair_results": pair_results, **s}, fh, indent=2)
     if a.check:
         ok = s["hit_pct"] >= a.min_hit and (np.isnan(s["median_shrink_pct"]) or s["median_shrink_pct"] >= a.min_shrink) \
-            and not s["false_in_none"]
+            and not s["false_in_none"] and (not pair_results or s["pairs_hit_pct"] >= a.min_pairs)
         return 0 if ok else 1
     return 0
 

@@ -145,6 +145,6 @@ def diagnose_into(a, say, tmp, out):
         from . import design
         design.write_schedule(os.path.join(tmp, OUT_FILES[2]), result["experiment"])
     publish_out(tmp, out)
-    say(f"effect: {result['effect']}; held-out shrink {result['shrink_pct']:.1f}%; "
+    say(f"effect: {' + '.join(result['effects']) or 'none'}; held-out shrink {result['shrink_pct']:.1f}%; "
         f"{result['seconds']:.1f} s; wrote {out}/diagnosis.json and report.html")
     return 0

@@ -6,6 +6,10 @@ the cost rough, so the cost is first evaluated at 32 quasi-random points (plus
 the "off" point when it lies in the box) and least_squares polishes the best
 four.
 Candidates run in parallel processes, one simulator per process.
+
+Pairs (two effects at once, "a+b"): one joint fit of both parameter lists,
+started from the two single fits (and from the first's with the second off),
+polished from both (pipeline.py and pairs.py decide which pairs and whether one is kept).
 """
 import os
 import time
@@ -19,7 +23,7 @@ from . import effects as fx
 from . import gap
 from .effects import from_unit, to_unit
 from .model import CLOSED_LOOP, REPLAY, make_simulator
-from .uncertainty import assess
+from .uncertainty import assess, autocorrelation_inflation
 
 RESAMPLE_S = 0.05        # residuals every 50 ms: 20 Hz is plenty for a 0.1-10 s plant
 FAILED_RESIDUAL = 100.0  # normalised residual of a sample the simulation could not produce
@@ -82,15 +86,27 @@ def cost_to_gap(r, nruns):
     return float(np.sqrt(np.sum(r ** 2) / max(nruns, 1)))
 
 
+def off_point(effect):
+    """The nominal ("off") parameters in the unit box, or None when they lie outside it."""
+    off = effect.nominal()
+    return to_unit(effect, off) if all(p.lo <= off[p.name] <= p.hi for p in effect.params) else None
+
+
 def fit_effect(problem, effect, starts=32, max_nfev=60, seed=0, polish=4):
     """Least-squares fit of one effect. Returns dict with params, cost, evaluations."""
     d = len(effect.params)
     sampler = qmc.Halton(d, scramble=True, seed=seed)
     cand = sampler.random(max(2, starts))
     # the "off" point (nominal plant) when it lies in the box: a fit can always fall back to it
-    off = effect.nominal()
-    if all(p.lo <= off[p.name] <= p.hi for p in effect.params):
-        cand = np.vstack([to_unit(effect, off), cand])
+    off = off_point(effect)
+    if off is not None:
+        cand = np.vstack([off, cand])
+    return fit_from(problem, effect, cand, max_nfev, polish)
+
+
+def fit_from(problem, effect, cand, max_nfev=60, polish=4):
+    """The cost at each start (rows of unit-box points), least_squares from the best `polish`."""
+    d = len(effect.params)
     costs = []
     for u in cand:
         r = problem.residual_vector(effect.name, from_unit(effect, u))
@@ -109,6 +125,23 @@ def fit_effect(problem, effect, starts=32, max_nfev=60, seed=0, polish=4):
             best_u, best_cost = res.x, c
     return {"params": from_unit(effect, best_u), "unit": [float(x) for x in best_u],
             "calibration_gap": float(np.sqrt(best_cost / max(len(problem.runs), 1)))}
+
+
+def pair_starts(first, second, u_first, u_second):
+    """Where a pair's joint fit starts: both single fits together, and the first's
+    fit with the second at its nominal values (when those lie in the box)."""
+    starts = [np.concatenate([u_first, u_second])]
+    off = off_point(second)
+    if off is not None:
+        starts.append(np.concatenate([u_first, off]))
+    return np.array(starts)
+
+
+def residual_samples(problem, effect, params):
+    """Sum of squares of the calibration residuals and their effective number of
+    independent samples (n shrunk by the lag-1 autocorrelation, as the intervals do)."""
+    r = problem.residual_vector(effect, params)
+    return float(np.sum(r ** 2)), len(r) / autocorrelation_inflation(r)
 
 
 # --- parallel candidates ----------------------------------------------------------
@@ -135,27 +168,62 @@ def _run_candidate(name, fit_opts):
     return name, res
 
 
-def fit_all(spec, config, calib, holdout, mode="auto", candidates=None, jobs=None, progress=None,
-            fit_opts=None):
-    """Fit every candidate (in parallel processes). Returns {name: result}."""
-    candidates = candidates or fx.NAMES
-    fit_opts = fit_opts or {}
-    jobs = jobs or min(len(candidates), os.cpu_count() or 1, 2)
+PAIR_NFEV = 40   # least_squares evaluations of a pair's joint fit, from each of its two starts
+
+
+def _run_pair(name, starts, fit_opts):
+    """Joint fit of a pair "a+b" from its starts; held-out gap, intervals (no
+    refits over runs: a pair is judged on its held-out gain), residual samples."""
+    t0 = time.perf_counter()
+    eff = fx.get(name)
+    calib, hold = _worker["calib"], _worker["hold"]
+    nfev = min(PAIR_NFEV, fit_opts.get("max_nfev", PAIR_NFEV))
+    res = fit_from(calib, eff, np.asarray(starts), nfev, polish=len(starts))
+    res["holdout_gap"] = hold.gap(name, res["params"])
+    res["uncertainty"] = assess(calib, eff, res["unit"], resample=False)
+    res["calibration_ss"], res["calibration_n_eff"] = residual_samples(calib, name, res["params"])
+    res["simulations"] = calib.nsim + hold.nsim
+    res["seconds"] = time.perf_counter() - t0
+    calib.nsim = hold.nsim = 0
+    return name, res
+
+
+def _in_pool(spec, config, calib, holdout, mode, jobs, work, progress):
+    """Runs work [(fn, args)] in parallel processes (or here with jobs 1). Returns {name: result}."""
     out = {}
     if jobs <= 1:
         _init_worker(spec, config, calib, holdout, mode)
-        for name in candidates:
-            n, r = _run_candidate(name, fit_opts)
+        for fn, args in work:
+            n, r = fn(*args)
             out[n] = r
             if progress:
                 progress(n, r)
         return out
     with ProcessPoolExecutor(max_workers=jobs, initializer=_init_worker,
                              initargs=(spec, config, calib, holdout, mode)) as pool:
-        futs = [pool.submit(_run_candidate, name, fit_opts) for name in candidates]
+        futs = [pool.submit(fn, *args) for fn, args in work]
         for f in futs:
             n, r = f.result()
             out[n] = r
             if progress:
                 progress(n, r)
     return out
+
+
+def fit_all(spec, config, calib, holdout, mode="auto", candidates=None, jobs=None, progress=None,
+            fit_opts=None):
+    """Fit every candidate (in parallel processes). Returns {name: result}."""
+    candidates = candidates or fx.NAMES
+    fit_opts = fit_opts or {}
+    jobs = jobs or min(len(candidates), os.cpu_count() or 1, 2)
+    return _in_pool(spec, config, calib, holdout, mode, jobs,
+                    [(_run_candidate, (name, fit_opts)) for name in candidates], progress)
+
+
+def fit_pairs(spec, config, calib, holdout, pairs, mode="auto", jobs=None, progress=None, fit_opts=None):
+    """Joint fits of pairs {"a+b": starts} (pair_starts). Returns {name: result}."""
+    if not pairs:
+        return {}
+    jobs = jobs or min(len(pairs), os.cpu_count() or 1, 2)
+    return _in_pool(spec, config, calib, holdout, mode, jobs,
+                    [(_run_pair, (name, st, fit_opts or {})) for name, st in pairs.items()], progress)

@@ -6,6 +6,7 @@ import numpy as np
 from . import design
 from . import effects as fx
 from . import fit
+from . import pairs
 from . import separability
 from . import gap
 from . import phases as ph
@@ -206,6 +207,31 @@ def lookalike_step(problem, ranking, threshold, named, progress, design_pair=Non
     return out
 
 
+def pair_step(spec, config, calib, holdout, mode, jobs, fit_opts, ranking, fits, threshold, nominal_gaps,
+              progress):
+    """Pairs on top of the leader, fitted jointly and judged (pairs.py). Returns
+    (pair entries ranked by held-out shrink, the kept one or None)."""
+    plan = pairs.plan(ranking, fits)
+    if not plan:
+        return [], None
+    progress(f"      pairs on top of {ranking[0]['effect']}: fitting {len(plan)} jointly")
+
+    def on_pair(name, r):
+        progress(f"      {name:<31} held-out gap {r['holdout_gap']:.3f} "
+                 f"({shrink(nominal_gaps[1], r['holdout_gap']):+.1f}%) in {r['seconds']:.1f} s")
+
+    res = fit.fit_pairs(spec, config, calib, holdout, plan, mode, jobs, on_pair, fit_opts)
+    by = {r["effect"]: r for r in ranking}
+    entries = [pairs.entry(n, res[n], by, len(calib), shrink, *nominal_gaps) for n in plan]
+    kept = pairs.judge(entries, by, threshold)
+    entries.sort(key=lambda e: -e["shrink_pct"])
+    for e in entries:
+        progress(f"      {e['effect']:<31} {e['shrink_pct']:+.1f}% ({e['gain_pts']:+.1f} points over the leader, "
+                 f"information criterion {e['delta_bic']:+.1f}): "
+                 + ("kept" if e["kept"] else "not kept: " + "; ".join(e["why_not"])))
+    return entries, kept
+
+
 def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jobs=None,
              progress=print, fit_opts=None, design_pair=None):
     """Returns (result dict for diagnosis.json, traces for the report)."""
@@ -277,14 +303,19 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
         threshold = max(THRESHOLD_PCT, floor + FLOOR_MARGIN_PTS)
     progress(f"      sensitivity floor of the held-out {'figures' if features else 'runs'}: {floor:.1f}% "
              f"(threshold {threshold:.1f}%)")
-    named = best["shrink_pct"] >= threshold
+    named_single = best["shrink_pct"] >= threshold
+    pair_list, kept = ([], None) if features else pair_step(
+        spec, config, calib, holdout, mode, jobs, fit_opts, ranking, fits, threshold,
+        (nominal_cal_gap, nominal_hold_gap), progress)
+    named = named_single or kept is not None
     winner = best["effect"] if named else "none"
-    look = lookalike_step(cal_problem, ranking, threshold, named and not features, progress, design_pair)
+    effects = kept["effects"] if kept else ([winner] if named else [])
+    look = lookalike_step(cal_problem, ranking, threshold, named_single and not features, progress, design_pair)
 
-    progress(f"[3/3] before/after on held-out runs ({'winner ' + winner if named else 'no effect'})")
+    progress(f"[3/3] before/after on held-out runs ({'winner ' + fx.combine(effects) if named else 'no effect'})")
     if named:
-        fitted = {k: v["value"] for k, v in best["params"].items()}
-        aug_hold = [hold_problem.simulate(r, winner, fitted) for r in holdout]
+        top = kept or best
+        aug_hold = [hold_problem.simulate(r, top["effect"], _params_of(top)) for r in holdout]
     else:
         aug_hold = nominal_hold
     if features:
@@ -301,6 +332,9 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
         "where": where,
         "ranking": ranking,
         "effect": winner,
+        # the ranked combination: the leader, and a second effect when a pair is kept (pairs.py)
+        "effects": effects,
+        "pairs": pair_list,
         "margin_pct": (best["shrink_pct"] - runner["shrink_pct"]) if runner else None,
         "runner_up": runner["effect"] if runner else None,
         # look-alikes: the candidates these logs cannot tell apart (the winner first), with evidence
