@@ -6,7 +6,8 @@ each other candidate that is plausible on its own (it shrinks the calibration
 gap), at most MAX_PAIRS of them in ranking order, and each pair is fitted
 jointly from the two single fits (fit.fit_pairs). This is done whether or not
 the leader alone clears the threshold: two effects that partly cancel may
-each look weak alone.
+each look weak alone. It is skipped when the leader leaves less of the
+held-out gap than rule 1 asks a second effect to close.
 
 A second effect is kept only when it buys more than its extra parameters:
   1. held out: the pair closes at least REL_GAIN of the held-out gap the
@@ -33,7 +34,10 @@ MIN_GAIN_PTS = 5.0  # and at least this many points of the nominal gap
 
 
 def plan(ranking, fits):
-    """{"leader+second": joint-fit starts} for the plausible seconds of the leader."""
+    """{"leader+second": joint-fit starts} for the plausible seconds of the leader;
+    none when the leader leaves less than MIN_GAIN_PTS of the held-out gap to gain."""
+    if ranking[0]["shrink_pct"] > 100.0 - MIN_GAIN_PTS:
+        return {}
     leader = ranking[0]["effect"]
     seconds = [r["effect"] for r in ranking[1:] if r["calibration_shrink_pct"] > 0.0][:MAX_PAIRS]
     return {fx.combine([leader, s]): fit.pair_starts(fx.get(leader), fx.get(s), fits[leader]["unit"],
