@@ -12,6 +12,7 @@ the logs' own sensor noise (RMS over the run of the per-sample difference /
 noise, summed over signals).
 """
 import os
+from dataclasses import replace
 
 import numpy as np
 
@@ -173,39 +174,65 @@ def overridden(trace, steps):
     return bad
 
 
-def separation(problem, run, a, b, noise, steps=None):
-    """Predicted difference between fitted candidates a and b, in noise units, and
-    whether either simulation saw the supervisor override the schedule's manual rows."""
-    ta = problem.sim.simulate(problem.config, run, a[0], a[1], CLOSED_LOOP)
-    tb = problem.sim.simulate(problem.config, run, b[0], b[1], CLOSED_LOOP)
+def distance(ta, tb, noise):
+    """RMS over the run of the per-sample difference of two traces / the sensor noise,
+    summed over the logged signals (noise units)."""
     total = 0.0
     for s, sd in noise.items():
         d = (ta.signals[s] - tb.signals[s]) / sd
         d = d[np.isfinite(d)]
         if d.size:
             total += float(np.mean(d * d))
+    return float(np.sqrt(total))
+
+
+def jittered(run, noise, sign):
+    """The same planned run starting from a state differing by one standard deviation
+    of the sensor noise in height and P2 (imperceptible in the logs it was read from)."""
+    sig = dict(run.signals)
+    sig["height_m"] = sig["height_m"] + sign * noise.get("height_m", SIGNAL_FLOOR["height_m"])
+    sig["p_spring_pa"] = sig["p_spring_pa"] + sign * noise.get("p_spring_pa", SIGNAL_FLOOR["p_spring_pa"])
+    return replace(run, signals=sig)
+
+
+def separation(problem, run, a, b, noise, steps=None):
+    """Predicted difference between fitted candidates a and b, in noise units; the
+    knife edge: how far either candidate's own prediction moves when the start
+    moves by one standard deviation of the sensor noise (a platform held by
+    hysteresis may break free a pulse earlier or later for no reason the rig
+    can control); and whether either simulation saw the supervisor override the
+    schedule's manual rows."""
+    sim = lambda r, e: problem.sim.simulate(problem.config, r, e[0], e[1], CLOSED_LOOP)
+    ta, tb = sim(run, a), sim(run, b)
+    edge = 0.0
+    for sign in (-1.0, 1.0):
+        r = jittered(run, noise, sign)
+        edge = max(edge, distance(ta, sim(r, a), noise), distance(tb, sim(r, b), noise))
     unsafe = bool(steps) and (overridden(ta, steps) + overridden(tb, steps)) > 0
-    return float(np.sqrt(total)), unsafe
+    return distance(ta, tb, noise), edge, unsafe
 
 
 def propose(problem, a, b, noise=None):
-    """Rank the schedules for separating a = (effect, params) from b; best first.
-    A manual sequence the supervisor would override (in either candidate's
-    simulation) is left out of the ranking and listed under `unsafe`."""
+    """Rank the schedules for separating a = (effect, params) from b; best first, by
+    the predicted difference beyond the knife edge (a difference that an
+    imperceptible change of the start also makes is no evidence). A manual
+    sequence the supervisor would override (in either candidate's simulation)
+    is left out of the ranking and listed under `unsafe`."""
     noise = noise or noise_levels(problem.runs)
     like = problem.runs[0]
     base = float(like.load_n[0])
     ranked, unsafe = [], []
     for name, steps, end in candidate_schedules(base, like.measured("p_acc_pa")):
         run = schedule_run(like, steps, end)
-        sep, over = separation(problem, run, a, b, noise, steps)
+        sep, edge, over = separation(problem, run, a, b, noise, steps)
         rows = [[float(r[0]), float(r[1]), dict(r[2])] for r in steps]
         if rows[-1][0] < end:
             rows.append([end, base, {}])
-        entry = {"schedule": name, "kind": "manual" if schedule_writes(steps) else "load",
-                 "steps": rows, "separation_noise_units": sep}
+        entry = {"schedule": name, "kind": "manual" if schedule_writes(steps) else "load", "steps": rows,
+                 "separation_noise_units": max(sep - edge, 0.0), "difference_noise_units": sep,
+                 "knife_edge_noise_units": edge}
         (unsafe if over else ranked).append(entry)
-    ranked.sort(key=lambda r: -r["separation_noise_units"])
+    ranked.sort(key=lambda r: (-r["separation_noise_units"], -r["difference_noise_units"]))
     return {"between": [a[0], b[0]], "noise": noise, "ranked": ranked, "unsafe": [u["schedule"] for u in unsafe]}
 
 
@@ -219,7 +246,8 @@ def write_schedule(path, proposal, columns=None):
     with open(tmp, "w") as fh:
         fh.write(f"# proposed by leveler-diagnose to tell {proposal['between'][0]} from "
                  f"{proposal['between'][1]}: {best['schedule']}\n")
-        fh.write(f"# predicted difference {best['separation_noise_units']:.1f} x the sensor noise\n")
+        fh.write(f"# predicted difference {best.get('difference_noise_units', best['separation_noise_units']):.1f} "
+                 f"x the sensor noise, {best['separation_noise_units']:.1f} beyond the knife edge\n")
         if used:
             fh.write("# mode 2 = manual (the manual_* requests drive the actuators, still supervised), 1 = auto; "
                      "load_n is weights on a real rig (leveler-schedule-run says when)\n")
