@@ -94,49 +94,50 @@ static int write_reg(modbus_t *mb, const sim_schedule_reg *r, uint16_t v)
     return modbus_write_register(mb, r->address, v) == 1 ? 0 : -1;
 }
 
-/* Writes sim_schedule_regs[j0..j1) (coils at consecutive addresses) in one FC 15 request. */
-static int write_coil_run(modbus_t *mb, const sim_load_step *row, int j0, int j1)
-{
-    uint8_t bits[SIM_SCHEDULE_REG_COUNT];
-    for (int j = j0; j < j1; j++)
-        bits[j - j0] = (uint8_t)row->value[j];
-    return modbus_write_bits(mb, sim_schedule_regs[j0].address, j1 - j0, bits) == j1 - j0 ? 0 : -1;
-}
-
 static bool written(const sim_load_step *row, int j) { return (row->writes & (1u << j)) != 0; }
 
-/* A row's writes: the manual requests first (each run of consecutive coils in
- * one request), then the mode; the rig validates each request all-or-nothing.
- * 0 or -1. */
+/* Writes the registers sim_schedule_write_order[k0..k1): one register (FC 06), or
+ * coils at consecutive addresses in one FC 15 request. */
+static int write_run(modbus_t *mb, const sim_load_step *row, int k0, int k1)
+{
+    const sim_schedule_reg *r = &sim_schedule_regs[sim_schedule_write_order[k0]];
+    if (r->table != LEVELER_TABLE_COIL)
+        return write_reg(mb, r, row->value[sim_schedule_write_order[k0]]);
+    uint8_t bits[SIM_SCHEDULE_REG_COUNT];
+    for (int k = k0; k < k1; k++)
+        bits[k - k0] = (uint8_t)row->value[sim_schedule_write_order[k]];
+    return modbus_write_bits(mb, r->address, k1 - k0, bits) == k1 - k0 ? 0 : -1;
+}
+
+/* A row's writes in sim_schedule_write_order (the manual requests, then the
+ * mode), each run of coils at consecutive addresses in one request; the rig
+ * validates each request all-or-nothing. 0 or -1. */
 static int play_row(modbus_t *mb, const sim_load_step *row)
 {
     char what[256] = "";
     size_t len = 0;
-    for (int j = 1; j < SIM_SCHEDULE_REG_COUNT;) {
-        int j1 = j;
-        while (j1 < SIM_SCHEDULE_REG_COUNT && written(row, j1) &&
-               (j1 == j || sim_schedule_regs[j1].address == sim_schedule_regs[j1 - 1].address + 1u))
-            j1++;
-        if (j1 == j) {
-            j++;
+    for (int k = 0; k < SIM_SCHEDULE_REG_COUNT;) {
+        if (!written(row, sim_schedule_write_order[k])) {
+            k++;
             continue;
         }
-        if (write_coil_run(mb, row, j, j1) != 0) {
-            fprintf(stderr, "leveler-schedule-run: row at %g s: the rig refused %s..%s: %s\n", row->t_s,
-                    sim_schedule_regs[j].name, sim_schedule_regs[j1 - 1].name, modbus_strerror(errno));
+        const sim_schedule_reg *r = &sim_schedule_regs[sim_schedule_write_order[k]];
+        int k1 = k + 1;
+        while (r->table == LEVELER_TABLE_COIL && k1 < SIM_SCHEDULE_REG_COUNT && written(row, sim_schedule_write_order[k1]) &&
+               sim_schedule_regs[sim_schedule_write_order[k1]].table == LEVELER_TABLE_COIL &&
+               sim_schedule_regs[sim_schedule_write_order[k1]].address == r->address + (unsigned)(k1 - k))
+            k1++;
+        if (write_run(mb, row, k, k1) != 0) {
+            fprintf(stderr, "leveler-schedule-run: row at %g s: the rig refused %s%s%s: %s\n", row->t_s, r->name,
+                    k1 - k > 1 ? ".." : "", k1 - k > 1 ? sim_schedule_regs[sim_schedule_write_order[k1 - 1]].name : "",
+                    modbus_strerror(errno));
             return -1;
         }
-        for (; j < j1; j++)
+        for (; k < k1; k++) {
+            int j = sim_schedule_write_order[k];
             len += (size_t)snprintf(what + len, sizeof what - len, " %s = %u", sim_schedule_regs[j].name,
                                     row->value[j]);
-    }
-    if (written(row, 0)) {
-        if (write_reg(mb, &sim_schedule_regs[0], row->value[0]) != 0) {
-            fprintf(stderr, "leveler-schedule-run: row at %g s: the rig refused mode = %u: %s\n", row->t_s,
-                    row->value[0], modbus_strerror(errno));
-            return -1;
         }
-        snprintf(what + len, sizeof what - len, " mode = %u", row->value[0]);
     }
     if (row->writes)
         printf("t %.3f s (rig %.3f s): wrote%s\n", row->t_s, rig_time_s(mb), what);

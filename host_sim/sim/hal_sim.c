@@ -40,13 +40,13 @@ static int write_reg(sim_schedule_writer *w, const sim_load_step *row, int j)
     return -1;
 }
 
-/* The rows due at t_s: manual requests (sim_schedule_regs[1..]) first, then the mode ([0]). */
+/* The rows due at t_s, each in sim_schedule_write_order. */
 static void schedule_writes(sim_schedule_writer *w, double t_s)
 {
     while (!w->failed && w->next < w->count && w->steps[w->next].t_s <= t_s + 0.5 * SIM_TICK_S) {
         const sim_load_step *row = &w->steps[w->next++];
-        for (int k = 1; k <= SIM_SCHEDULE_REG_COUNT && !w->failed; k++) {
-            int j = k % SIM_SCHEDULE_REG_COUNT;
+        for (int k = 0; k < SIM_SCHEDULE_REG_COUNT && !w->failed; k++) {
+            int j = sim_schedule_write_order[k];
             if (row->writes & (1u << j))
                 (void)write_reg(w, row, j);
         }

@@ -21,6 +21,8 @@ const sim_schedule_reg sim_schedule_regs[SIM_SCHEDULE_REG_COUNT] = {
     {"manual_acc_valve", LEVELER_TABLE_COIL, LEVELER_COIL_MANUAL_ACC_VALVE, 1},
 };
 
+const uint8_t sim_schedule_write_order[SIM_SCHEDULE_REG_COUNT] = {1, 2, 3, 4, 0};
+
 size_t sim_schedule_from_config(const plant_config *cfg, sim_load_step out[4], double *end_s)
 {
     size_t n = 0;

@@ -42,6 +42,10 @@ typedef struct {
 } sim_schedule_reg;
 /* mode, manual_compressor, manual_spring_valve, manual_vent_valve, manual_acc_valve */
 extern const sim_schedule_reg sim_schedule_regs[SIM_SCHEDULE_REG_COUNT];
+/* The order a row's writes are made in (indices into sim_schedule_regs): the
+ * manual requests first, then the mode, so that switching to manual takes the
+ * row's requests at once (the simulator's hal_sim.c and leveler-schedule-run). */
+extern const uint8_t sim_schedule_write_order[SIM_SCHEDULE_REG_COUNT];
 
 typedef struct {
     double t_s;    /* the load takes effect (and the writes are made) at this time */
