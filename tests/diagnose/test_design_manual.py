@@ -92,3 +92,23 @@ def test_a_manual_sequence_separates_load_step_lookalikes_and_the_truth_decides(
     # resolved in favour of the truth's kind: its candidate explains the experiment, the look-alike does not
     assert ex_a < 0.5 * ex_nom
     assert ex_a < 0.3 * ex_b
+
+
+def test_the_blind_test_runs_a_proposed_manual_experiment_on_its_truth(case, cplant):
+    """blindtest.run_experiment (the path the blind test takes for look-alikes): the
+    proposed experiment.csv with register columns is read by the C parser, run on
+    the truth through the register map, and the look-alikes refitted by the
+    diagnosis as its own process are scored on it: the truth's kind is named."""
+    p = design.propose(case["prob"], ("line_delay", case["a"]), ("sensor_lag", case["b"]))
+    os.makedirs(case["top"] / "diagnosis", exist_ok=True)
+    design.write_schedule(str(case["top"] / "diagnosis" / "experiment.csv"), p)
+    d = {"cannot_tell_apart": ["line_delay", "sensor_lag"]}
+    verdict = bt.run_experiment(cplant, str(case["top"]), d, "line_delay", truth_params(), SYSTEM, "100Hz", 1,
+                                ["--fast"])
+    run = load_run(str(case["logs"] / "experiment.csv"))
+    steps, _ = read_schedule(str(case["top"] / "diagnosis" / "experiment.csv"))
+    for k, want in design.requested(run.t_s, steps).items():
+        manual = want >= 0
+        manual[1:] &= manual[:-1]
+        assert manual.sum() > 100 and (run.commands[k.replace("manual_", "")][manual] == want[manual]).all(), k
+    assert verdict == "line_delay"

@@ -132,8 +132,8 @@ def schedule_writes(steps):
 
 
 def requested(t, steps):
-    """The manual requests in force over each tick (None where the mode is not manual):
-    {request: array of 0/1/-1 (-1 = auto)}."""
+    """The manual requests in force over each tick, -1 where the mode is not manual:
+    {request: array of 0, 1 or -1}."""
     mode = np.full(len(t), -1)
     req = {k: np.zeros(len(t), dtype=int) for k in OFF}
     for t0, w in schedule_writes(steps):
