@@ -146,10 +146,12 @@ static int parse_row(char *p, const char *path, int lineno, const columns *c, si
                      lineno);
         return -1;
     }
-    if (parse_double(f[0], f[0] + strlen(f[0]), &t) != 0 || parse_double(f[1], f[1] + strlen(f[1]), &load) != 0) {
-        snprintf(err, err_len, "%s:%d: t_s and load_n must be numbers", path, lineno);
-        return -1;
-    }
+    for (int i = 0; i < 2; i++)
+        if (parse_double(f[i], f[i] + strlen(f[i]), i ? &load : &t) != 0) {
+            snprintf(err, err_len, "%s:%d: %s: expected a number (got '%.20s')", path, lineno, i ? "load_n" : "t_s",
+                     f[i]);
+            return -1;
+        }
     if (n == 0 && t != 0.0) {
         snprintf(err, err_len, "%s:%d: t_s: the first step must be at 0 s (got %g)", path, lineno, t);
         return -1;
