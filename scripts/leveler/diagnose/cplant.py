@@ -66,6 +66,7 @@ def scenario_loads(t_s, scenario):
 MAX_SCHEDULE_ROWS = 1024
 
 
+@functools.lru_cache(maxsize=None)
 def schedule_columns():
     """The register columns a schedule file may have (mode and the manual requests),
     named as the register map names them, in the C table's order (stepper.h)."""
@@ -76,7 +77,7 @@ def schedule_columns():
     while (name := lib.diag_schedule_column(j)) is not None:
         out.append(name.decode())
         j += 1
-    return out
+    return tuple(out)
 
 
 def read_schedule(path):
@@ -100,16 +101,25 @@ def read_schedule(path):
     return rows, rows[-1][0]
 
 
-def _set_writes(lib, writes):
-    """The register writes [(t_s, {register: value})] of the next closed-loop run (diag_shim.c)."""
-    cols = schedule_columns()
+@functools.lru_cache(maxsize=None)
+def _writes_fn(lib):
     f = lib.diag_set_schedule_writes
     f.restype = ctypes.c_int
     f.argtypes = [ctypes.c_int, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32),
                   ctypes.c_char_p, ctypes.c_int]
+    return f
+
+
+def _set_writes(lib, writes):
+    """The register writes [(t_s, {register: value})] of the next closed-loop run (diag_shim.c)."""
+    f = _writes_fn(lib)
     writes = list(writes or [])
-    t = np.ascontiguousarray([w[0] for w in writes] or [0.0], dtype=np.float64)
-    vals = np.full((max(len(writes), 1), len(cols)), -1, dtype=np.int32)
+    if not writes:
+        f(0, None, None, None, 0)
+        return
+    cols = schedule_columns()
+    t = np.ascontiguousarray([w[0] for w in writes], dtype=np.float64)
+    vals = np.full((len(writes), len(cols)), -1, dtype=np.int32)
     for i, (_, w) in enumerate(writes):
         for name, v in w.items():
             vals[i, cols.index(name)] = v
