@@ -11,6 +11,7 @@
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "diag.h"
@@ -103,12 +104,88 @@ static int check_time_base(int n, const double *t_s, bool closed, char *err, int
     return 0;
 }
 
+/* ---- a schedule's register writes in closed loop (mode, manual requests) ---- */
+
+#define DIAG_MAX_WRITE_ROWS 1024
+static sim_load_step write_rows[DIAG_MAX_WRITE_ROWS];
+static size_t write_count;
+
+/* The writes of the next diag_run (closed loop; one run only, then cleared):
+ * n rows at t_s[i] with values[i * SIM_SCHEDULE_REG_COUNT + j] for
+ * sim_schedule_regs[j] (diag_schedule_column), -1 = no write. The firmware
+ * gets them through its register map (simloop.h). 0, or -1 with err. */
+int diag_set_schedule_writes(int n, const double *t_s, const int32_t *values, char *err, int err_len)
+{
+    write_count = 0;
+    if (n < 0 || n > DIAG_MAX_WRITE_ROWS) {
+        snprintf(err, (size_t)err_len, "schedule writes: %d rows (at most %d)", n, DIAG_MAX_WRITE_ROWS);
+        return -1;
+    }
+    for (int i = 0; i < n; i++) {
+        sim_load_step row = {.t_s = t_s[i]};
+        for (int j = 0; j < SIM_SCHEDULE_REG_COUNT; j++) {
+            int32_t v = values[i * SIM_SCHEDULE_REG_COUNT + j];
+            if (v < -1 || v > sim_schedule_regs[j].max || (i > 0 && !(t_s[i] > t_s[i - 1]))) {
+                snprintf(err, (size_t)err_len, "schedule writes row %d: %s = %d at %g s", i,
+                         sim_schedule_regs[j].name, (int)v, t_s[i]);
+                return -1;
+            }
+            if (v >= 0) {
+                row.writes |= (uint8_t)(1u << j);
+                row.value[j] = (uint16_t)v;
+            }
+        }
+        write_rows[i] = row;
+    }
+    write_count = (size_t)n;
+    return 0;
+}
+
+static sim_schedule_writer take_schedule_writes(void)
+{
+    sim_schedule_writer w = {.steps = write_rows, .count = write_count};
+    write_count = 0;
+    return w;
+}
+
+/* Name of schedule column 2 + j (sim_schedule_regs[j]: a register's name), NULL past the last. */
+const char *diag_schedule_column(int j)
+{
+    return j >= 0 && j < SIM_SCHEDULE_REG_COUNT ? sim_schedule_regs[j].name : NULL;
+}
+
+/* A schedule file read by the simulator's one parser (schedule.c): up to cap
+ * rows into t_s, load_n and values (cap x SIM_SCHEDULE_REG_COUNT, -1 = no
+ * write). The row count, or -1 with "file:line: field: ..." in err. */
+int diag_schedule_read(const char *path, int cap, double *t_s, double *load_n, int32_t *values, char *err,
+                       int err_len)
+{
+    sim_load_step *v = NULL;
+    size_t n = 0;
+    if (sim_schedule_load(path, &v, &n, err, (size_t)err_len) != 0)
+        return -1;
+    if (n > (size_t)cap) {
+        snprintf(err, (size_t)err_len, "%s: %zu rows (at most %d)", path, n, cap);
+        free(v);
+        return -1;
+    }
+    for (size_t i = 0; i < n; i++) {
+        t_s[i] = v[i].t_s;
+        load_n[i] = v[i].load_n;
+        for (int j = 0; j < SIM_SCHEDULE_REG_COUNT; j++)
+            values[i * SIM_SCHEDULE_REG_COUNT + j] = (v[i].writes & (1u << j)) ? v[i].value[j] : -1;
+    }
+    free(v);
+    return (int)n;
+}
+
 /*
  * Simulate one run.
  *   config_path      plant config (INI)
  *   n, t_s, load_n   the run's time base and load schedule (load for the interval from t_s[i])
  *   commands         n x 4 (compressor, spring_valve, vent_valve, acc_valve) to replay, or NULL for the
- *                    firmware in the loop (then t_s must be the 10 ms tick grid from 0)
+ *                    firmware in the loop (then t_s must be the 10 ms tick grid from 0; the
+ *                    register writes set by diag_set_schedule_writes are made during it)
  *   p1_track         replay only, may be NULL: where finite, the compressor runs while the
  *                    plant's P1 is below it instead of as logged (a log whose compressor
  *                    chatters faster than it samples: the replay regulates as the rig did)
@@ -188,13 +265,19 @@ int diag_run(const plant_fx_model *table, int table_count, const char *config_pa
     static plant_rng rng;
     plant_rng_seed(&rng, cfg.sensors.noise_seed);
     replay_ctx replay = {commands, p1_track, &f};
+    sim_schedule_writer writer = take_schedule_writes();
     sim_stepper st = {.cfg = &cfg, .plant = &f, .ops = &fx_plant,
                       .commands = closed ? sim_firmware_commands : replay_commands,
-                      .commands_user = &replay, .load = logged_load, .load_user = (void *)load_n, .rng = &rng,
+                      .commands_user = closed ? (void *)&writer : (void *)&replay, .load = logged_load,
+                      .load_user = (void *)load_n, .rng = &rng,
                       .initial_outputs = closed && !init, .times_s = t_s, .n_times = (size_t)n};
     sim_stepper_start(&st);
     for (int i = 0; i < n; i++) {
         sim_stepper_decide(&st);
+        if (writer.failed) {
+            snprintf(err, (size_t)err_len, "%s", writer.err);
+            return -1;
+        }
         memcpy(&out[4 * i], st.sensed, sizeof st.sensed);
         if (cmd_out) {
             cmd_out[4 * i] = st.in.compressor;

@@ -37,9 +37,9 @@ static void thesis(ctlbench_scenario *sc, const char *config, double base_lbf)
     name_scenario(sc, config, config);
     sc->kind = CTLBENCH_THESIS;
     double base = base_lbf * PLANT_N_PER_LBF;
-    sc->steps[0] = (sim_load_step){0.0, base};
-    sc->steps[1] = (sim_load_step){5.0, base + STEP_N};
-    sc->steps[2] = (sim_load_step){35.0, base};
+    sc->steps[0] = (sim_load_step){.t_s = 0.0, .load_n = base};
+    sc->steps[1] = (sim_load_step){.t_s = 5.0, .load_n = base + STEP_N};
+    sc->steps[2] = (sim_load_step){.t_s = 35.0, .load_n = base};
     sc->step_count = 3;
     sc->end_s = THESIS_END_S;
 }
@@ -55,9 +55,9 @@ static void rest(ctlbench_scenario *sc, const char *config, double noise, double
     sc->kind = CTLBENCH_REST;
     sc->noise_counts = noise;
     sc->noise_seed = 100u + (uint32_t)noise;
-    sc->steps[0] = (sim_load_step){0.0, LOAD_900_N};
-    sc->steps[1] = (sim_load_step){5.0, LOAD_900_N + STEP_N};
-    sc->steps[2] = (sim_load_step){35.0, LOAD_900_N};
+    sc->steps[0] = (sim_load_step){.t_s = 0.0, .load_n = LOAD_900_N};
+    sc->steps[1] = (sim_load_step){.t_s = 5.0, .load_n = LOAD_900_N + STEP_N};
+    sc->steps[2] = (sim_load_step){.t_s = 35.0, .load_n = LOAD_900_N};
     sc->step_count = 3;
     sc->rest_from_s = 35.0 + REST_SETTLE_S;
     sc->rest_to_s = sc->rest_from_s + rest_s;
@@ -86,7 +86,7 @@ static void random_steps(ctlbench_scenario *sc, const char *config, uint32_t see
     sc->noise_seed = seed;
     uint32_t s = seed;
     double load_lbf = 900.0, t = 0.0;
-    sc->steps[0] = (sim_load_step){0.0, load_lbf * PLANT_N_PER_LBF};
+    sc->steps[0] = (sim_load_step){.t_s = 0.0, .load_n = load_lbf * PLANT_N_PER_LBF};
     for (size_t i = 1; i <= steps && i < CTLBENCH_MAX_STEPS; i++) {
         t += (i == 1) ? 5.0 : 20.0 + 40.0 * uniform(&s);
         double mag = 50.0 + 250.0 * uniform(&s);
@@ -96,7 +96,7 @@ static void random_steps(ctlbench_scenario *sc, const char *config, uint32_t see
         if (load_lbf + sign * mag < 900.0 || load_lbf + sign * mag > 1200.0)
             mag = sign > 0 ? 1200.0 - load_lbf : load_lbf - 900.0;
         load_lbf += sign * round(mag);
-        sc->steps[i] = (sim_load_step){round(t), load_lbf * PLANT_N_PER_LBF};
+        sc->steps[i] = (sim_load_step){.t_s = round(t), .load_n = load_lbf * PLANT_N_PER_LBF};
         sc->step_count = i + 1;
     }
     sc->end_s = sc->steps[sc->step_count - 1].t_s + 60.0;

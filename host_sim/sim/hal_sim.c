@@ -7,10 +7,12 @@
 #include "leveler/hal.h"
 #include "simloop.h"
 
+#include <stdio.h>
 #include <string.h>
 
 #include "commission.h"
 #include "leveler/app.h"
+#include "leveler/regmap.h"
 
 static struct {
     uint16_t counts[HAL_ADC_COUNT];
@@ -25,9 +27,36 @@ int sim_firmware_start(const plant_config *cfg, int algorithm, char *err, size_t
     return sim_commission(cfg, algorithm, err, err_len);
 }
 
+/* One register write of a schedule row; 0 or -1 with the refusal in w->err. */
+static int write_reg(sim_schedule_writer *w, const sim_load_step *row, int j)
+{
+    const sim_schedule_reg *r = &sim_schedule_regs[j];
+    uint16_t v = row->value[j], reason = 0;
+    if (leveler_regs_write((leveler_table)r->table, r->address, 1, &v, &reason) == LEVELER_REG_OK)
+        return 0;
+    snprintf(w->err, sizeof w->err, "schedule row at %g s: firmware refused %s = %u (reason %u)", row->t_s,
+             r->name, v, reason);
+    w->failed = 1;
+    return -1;
+}
+
+/* The rows due at t_s, each in sim_schedule_write_order. */
+static void schedule_writes(sim_schedule_writer *w, double t_s)
+{
+    while (!w->failed && w->next < w->count && w->steps[w->next].t_s <= t_s + 0.5 * SIM_TICK_S) {
+        const sim_load_step *row = &w->steps[w->next++];
+        for (int k = 0; k < SIM_SCHEDULE_REG_COUNT && !w->failed; k++) {
+            int j = sim_schedule_write_order[k];
+            if (row->writes & (1u << j))
+                (void)write_reg(w, row, j);
+        }
+    }
+}
+
 void sim_firmware_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT])
 {
-    (void)user;
+    if (user)
+        schedule_writes(user, s->t_s_now);
     sim_stepper_counts(s, hal_state.counts);
     hal_state.now_ms = (uint32_t)(s->k * LEVELER_TICK_MS);
     leveler_app_tick();

@@ -60,8 +60,9 @@ int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
     /* The run starts from a rig already running: the first tick keeps the
      * config's [initial] actuators and the firmware first decides at the end
      * of it, as Appendix B's controller does after its first step. */
-    sim_stepper st = {.cfg = cfg, .plant = &pl, .ops = &sim_nominal_plant,
-                      .commands = sim_firmware_commands, .load = sim_load_from_schedule, .load_user = &cursor,
+    sim_schedule_writer writer = {.steps = cursor.steps, .count = cursor.count};
+    sim_stepper st = {.cfg = cfg, .plant = &pl, .ops = &sim_nominal_plant, .commands = sim_firmware_commands,
+                      .commands_user = &writer, .load = sim_load_from_schedule, .load_user = &cursor,
                       .rng = cfg->sensors.noise_counts > 0.0 ? &rng : NULL, .initial_outputs = true};
     sim_stepper_start(&st);
 
@@ -69,6 +70,10 @@ int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
     double next_progress = 0.0;
     for (;;) {
         sim_stepper_decide(&st);
+        if (writer.failed) {
+            snprintf(err, err_len, "%s", writer.err);
+            return -1;
+        }
         if (record(o, res, &st, err, err_len) != 0)
             return -1;
         res->ticks++;

@@ -21,6 +21,8 @@
 #include "simloop.h"
 #include "leveler/app.h"
 #include "leveler/status.h"
+#include "leveler/regmap.h"
+#include "leveler/regmap_addr.h"
 
 #ifndef CONFIG_DIR
 #error CONFIG_DIR must point at host_sim/configs
@@ -348,8 +350,15 @@ static void test_schedule_rule_and_file_errors(void **state)
         {"1,4003\n2,4003\n", "bad.csv:1: t_s: the first step must be at 0 s"},
         {"0,4003\n", "bad.csv:1: need at least two rows"},
         {"0,4003,1\n5,1\n", "bad.csv:1: expected two columns"},
-        {"0,4003\n5,x\n", "bad.csv:2: t_s and load_n must be numbers"},
+        {"0,4003\n5,x\n", "bad.csv:2: load_n: expected a number (got 'x')"},
+        {"0,4003\n,4003\n", "bad.csv:2: t_s: expected a number (got '')"},
         {"0,4003\n5,-1\n", "bad.csv:2: load_n: out of range"},
+        {"t_s,load_n,mode\n0,4003,\n5,4003,3\n", "bad.csv:3: mode: expected an integer 0..2 or empty"},
+        {"t_s,load_n,manual_spring_valve\n0,4003,1\n5,4003,on\n", "bad.csv:3: manual_spring_valve: expected"},
+        {"t_s,load_n,manual_valve\n0,4003,1\n", "bad.csv:1: manual_valve: not a schedule column"},
+        {"t_s,load_n,mode,mode\n0,4003,1,1\n", "bad.csv:1: mode: column given twice"},
+        {"t_s,load_n,mode\n0,4003,1,1\n5,4003,\n", "bad.csv:2: expected 3 columns as the header says"},
+        {"load_n,t_s\n0,4003\n", "bad.csv:1: header: expected t_s,load_n"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
         sim_load_step *v = NULL;
@@ -368,7 +377,62 @@ static void test_schedule_rule_and_file_errors(void **state)
                      0);
     assert_int_equal(count, 3);
     assert_true(v[1].t_s == 5.0 && v[1].load_n == 4892.0);
+    assert_int_equal(v[1].writes, 0); /* a load file writes no register */
     free(v);
+    /* register columns in any order; an empty cell writes nothing */
+    assert_int_equal(sim_schedule_load(write_file("ok.csv", "t_s,load_n,manual_spring_valve,mode\n0,4003,,\n"
+                                                            "5,4003,1,2\n6,4003,0,\n9,4003,,1\n"),
+                                       &v, &count, err, sizeof err),
+                     0);
+    assert_int_equal(count, 4);
+    assert_int_equal(v[0].writes, 0);
+    assert_int_equal(v[1].writes, (1u << 0) | (1u << 2)); /* sim_schedule_regs: mode, ..., spring valve */
+    assert_int_equal(v[1].value[0], 2);
+    assert_int_equal(v[1].value[2], 1);
+    assert_int_equal(v[2].writes, 1u << 2);
+    assert_int_equal(v[2].value[2], 0);
+    assert_string_equal(sim_schedule_regs[2].name, "manual_spring_valve");
+    free(v);
+}
+
+/* A schedule's mode and manual rows reach the firmware through its register
+ * map: in manual mode the outputs are the requests (still supervised), mode
+ * off holds them safe whatever is requested, and back in auto the controller
+ * decides again. The compressor against shut valves fills only the pipe. */
+static void test_schedule_manual_rows(void **state)
+{
+    (void)state;
+    static plant_config cfg;
+    char err[1024];
+    assert_int_equal(plant_config_load(CONFIG_DIR "/thesis-900lb.ini", &cfg, err, sizeof err), 0);
+    sim_load_step *steps = NULL;
+    size_t n = 0;
+    const char *text = "t_s,load_n,mode,manual_compressor,manual_spring_valve,manual_vent_valve\n"
+                       "0,4003.4,,,,\n2,4003.4,2,1,0,0\n4,4003.4,,,1,\n4.5,4003.4,,0,0,\n"
+                       "5,4003.4,0,1,1,1\n6,4003.4,1,0,0,0\n8,4003.4,,,,\n";
+    assert_int_equal(sim_schedule_load(write_file("manual.csv", text), &steps, &n, err, sizeof err), 0);
+    static runlog_row rows[900];
+    sim_options o = {.config = &cfg, .steps = steps, .step_count = n, .rows = rows, .rows_cap = 900};
+    static sim_result res;
+    assert_int_equal(sim_run(&o, &res, err, sizeof err), 0);
+    free(steps);
+    assert_int_equal(res.rows, 801);
+    for (size_t i = 1; i < res.rows; i++) { /* row i: the outputs the firmware set at tick i */
+        double t = rows[i].t_s;
+        bool c = rows[i].compressor, sv = rows[i].spring_valve, vv = rows[i].vent_valve;
+        if (t >= 2.0 && t < 4.0)
+            assert_true(c && !sv && !vv);
+        else if (t >= 4.0 && t < 4.5)
+            assert_true(c && sv && !vv);
+        else if (t >= 4.5 && t < 6.0) /* manual off, then mode off with everything requested */
+            assert_true(!c && !sv && !vv);
+    }
+    assert_true(rows[390].p_pipe_pa > rows[200].p_pipe_pa + 20e3);            /* the pipe filled */
+    assert_true(fabs(rows[390].p_spring_pa - rows[200].p_spring_pa) < 1e3); /* the spring did not */
+    assert_true(rows[440].p_spring_pa > rows[390].p_spring_pa + 1e3);        /* until its valve opened */
+    uint16_t mode = 0;
+    assert_int_equal(leveler_regs_read(LEVELER_TABLE_HOLDING_REGISTER, LEVELER_HR_MODE, 1, &mode), LEVELER_REG_OK);
+    assert_int_equal(mode, LEVELER_HR_MODE_AUTO);
 }
 
 static void test_program_controller_900(void **state)
@@ -517,6 +581,7 @@ int main(void)
         cmocka_unit_test(test_config_errors),
         cmocka_unit_test(test_config_units_and_include),
         cmocka_unit_test(test_schedule_rule_and_file_errors),
+        cmocka_unit_test(test_schedule_manual_rows),
         cmocka_unit_test(test_program_controller_900),
         cmocka_unit_test(test_firmware_equals_program_900),
         cmocka_unit_test(test_firmware_equals_program_1000),

@@ -55,4 +55,20 @@ int sim_run(const sim_options *opt, sim_result *res, char *err, size_t err_len);
 int sim_firmware_start(const plant_config *cfg, int algorithm, char *err, size_t err_len);
 void sim_firmware_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT]);
 
+/* A schedule's register writes (mode, manual requests; stepper.h), made the
+ * way a SCADA makes them: through the firmware's register map
+ * (leveler_regs_write, validated all-or-nothing), before the firmware's tick
+ * at or after each row's time (half a tick of slack, as the load rule).
+ * Within a row the manual requests go first, then the mode. Pass it as
+ * sim_firmware_commands' user (NULL: no writes). A refused write stops the
+ * writes and leaves the reason in failed / err; the caller checks after each
+ * tick. */
+typedef struct {
+    const sim_load_step *steps;
+    size_t count;
+    size_t next;   /* first row not yet written */
+    int failed;
+    char err[200];
+} sim_schedule_writer;
+
 #endif /* LEVELER_SIMLOOP_H */

@@ -30,18 +30,38 @@
 
 /* ---- loads ---- */
 
+/* The register-map entries a schedule row may write (optional columns of a
+ * schedule file, named as firmware/regmap/registers.json names them): the
+ * operating mode and the manual actuator requests. */
+#define SIM_SCHEDULE_REG_COUNT 5
 typedef struct {
-    double t_s;    /* the load takes effect at this time */
+    const char *name;  /* column name = register name */
+    uint8_t table;     /* leveler_table (leveler/regmap.h) */
+    uint16_t address;  /* 0-based protocol address */
+    uint16_t max;      /* values 0..max */
+} sim_schedule_reg;
+/* mode, manual_compressor, manual_spring_valve, manual_vent_valve, manual_acc_valve */
+extern const sim_schedule_reg sim_schedule_regs[SIM_SCHEDULE_REG_COUNT];
+/* The order a row's writes are made in (indices into sim_schedule_regs): the
+ * manual requests first, then the mode, so that switching to manual takes the
+ * row's requests at once (the simulator's hal_sim.c and leveler-schedule-run). */
+extern const uint8_t sim_schedule_write_order[SIM_SCHEDULE_REG_COUNT];
+
+typedef struct {
+    double t_s;    /* the load takes effect (and the writes are made) at this time */
     double load_n; /* absolute load */
+    uint8_t writes; /* bit j set: sim_schedule_regs[j] is written value[j] at t_s (0 = a load step only) */
+    uint16_t value[SIM_SCHEDULE_REG_COUNT];
 } sim_load_step;
 
 /* The config's built-in scenario (base, +step at step_on, removed at step_off,
  * end): out needs room for 4 steps. Returns the count; *end_s = scenario end. */
 size_t sim_schedule_from_config(const plant_config *cfg, sim_load_step out[4], double *end_s);
 
-/* A schedule file (CSV t_s,load_n; docs/config-format.md). On success *steps is
+/* A schedule file (CSV t_s,load_n[,mode][,manual_compressor]...; an empty
+ * register cell writes nothing; docs/config-format.md). On success *steps is
  * malloc'ed (free it) and the run ends at the last time. -1 with
- * "file:line: ..." in err on failure. */
+ * "file:line: field: ..." in err on failure. */
 int sim_schedule_load(const char *path, sim_load_step **steps, size_t *count, char *err, size_t err_len);
 
 /* THE scenario-to-load rule: the load over the tick starting at t_s is the

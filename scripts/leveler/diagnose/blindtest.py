@@ -42,7 +42,7 @@ from leveler import thesis
 from . import design
 from . import effects as fx
 from . import runs
-from .cplant import CONFIG_DIR
+from .cplant import CONFIG_DIR, read_schedule
 from .model import make_simulator
 
 LB = thesis.N_PER_LBF
@@ -138,11 +138,12 @@ def quantise(v, span, bits):
     return np.round(v / lsb) * lsb
 
 
-def write_truth_log(sim, path, rig, system, steps, end, effect, params, kind, rng):
-    """Run the truth closed loop on the 10 ms tick and write the log the rig would."""
+def write_truth_log(sim, path, rig, system, steps, end, effect, params, kind, rng, writes=None):
+    """Run the truth closed loop on the 10 ms tick and write the log the rig would
+    (writes: a schedule's mode / manual rows, made through the firmware's register map)."""
     t = np.round(np.arange(0.0, end + 1e-9, 0.01), 2)
     load = design.schedule_loads(t, steps)
-    tr = sim.generate(rig, t, load, effect, params, 0)
+    tr = sim.generate(rig, t, load, effect, params, 0, **({"writes": writes} if writes else {}))
     ts = log_times(rng, kind, end)
     idx = np.clip(np.searchsorted(t, ts + 1e-9, side="right") - 1, 0, len(t) - 1)  # in force at ts
     bits = LOG_KINDS[kind][3]
@@ -185,18 +186,6 @@ def diagnose_blind(folder, out, config, extra, runs_=("cal1", "cal2"), holdout="
         return json.load(fh)
 
 
-def read_schedule(path):
-    """A `leveler-sim --schedule` file: [(t_s, load_n)], end time."""
-    rows = []
-    with open(path) as fh:
-        for line in fh:
-            line = line.strip()
-            if line and not line.startswith("#") and not line.startswith("t_s"):
-                t, v = line.split(",")
-                rows.append((float(t), float(v)))
-    return rows[:-1], rows[-1][0]
-
-
 def run_experiment(sim, folder, d, case, params, system, kind, seed, extra):
     """Look-alikes: run the proposed experiment on the same truth and score the
     look-alikes, fitted on the calibration runs as before, on it: the experiment
@@ -206,7 +195,8 @@ def run_experiment(sim, folder, d, case, params, system, kind, seed, extra):
     steps, end = read_schedule(os.path.join(folder, "diagnosis", "experiment.csv"))
     rng = np.random.default_rng(seed * 1000 + CASES.index(case) + 500)   # single cases only
     rig = os.path.join(folder, "rig.ini")
-    write_truth_log(sim, os.path.join(logs, "experiment.csv"), rig, system, steps, end, case, params, kind, rng)
+    write_truth_log(sim, os.path.join(logs, "experiment.csv"), rig, system, steps, end, case, params, kind, rng,
+                    design.schedule_writes(steps))
     group = ",".join(d["cannot_tell_apart"])
     d2 = diagnose_blind(logs, os.path.join(folder, "diagnosis-experiment"), SYSTEMS[system][0],
                         list(extra) + ["--effects", group], holdout="experiment")

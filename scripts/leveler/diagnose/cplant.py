@@ -63,6 +63,71 @@ def scenario_loads(t_s, scenario):
     return out
 
 
+MAX_SCHEDULE_ROWS = 1024
+
+
+@functools.lru_cache(maxsize=None)
+def schedule_columns():
+    """The register columns a schedule file may have (mode and the manual requests),
+    named as the register map names them, in the C table's order (stepper.h)."""
+    lib = _library(find_library())
+    lib.diag_schedule_column.restype = ctypes.c_char_p
+    lib.diag_schedule_column.argtypes = [ctypes.c_int]
+    out, j = [], 0
+    while (name := lib.diag_schedule_column(j)) is not None:
+        out.append(name.decode())
+        j += 1
+    return tuple(out)
+
+
+def read_schedule(path):
+    """A schedule file by the simulator's one parser (host_sim/sim/schedule.c):
+    [(t_s, load_n, {register: value})] (the dict holds the row's writes, may be
+    empty), the end time. Errors name the file, line and field."""
+    lib = _library(find_library())
+    f = lib.diag_schedule_read
+    f.restype = ctypes.c_int
+    f.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
+                  ctypes.POINTER(ctypes.c_int32), ctypes.c_char_p, ctypes.c_int]
+    cols = schedule_columns()
+    t, load = np.empty(MAX_SCHEDULE_ROWS), np.empty(MAX_SCHEDULE_ROWS)
+    vals = np.empty((MAX_SCHEDULE_ROWS, len(cols)), dtype=np.int32)
+    err = ctypes.create_string_buffer(512)
+    n = f(os.fsencode(path), MAX_SCHEDULE_ROWS, _dptr(t), _dptr(load), _iptr(vals), err, len(err))
+    if n < 0:
+        raise DiagnoseInputError(err.value.decode(errors="replace"))
+    rows = [(float(t[i]), float(load[i]), {c: int(vals[i, j]) for j, c in enumerate(cols) if vals[i, j] >= 0})
+            for i in range(n)]
+    return rows, rows[-1][0]
+
+
+@functools.lru_cache(maxsize=None)
+def _writes_fn(lib):
+    f = lib.diag_set_schedule_writes
+    f.restype = ctypes.c_int
+    f.argtypes = [ctypes.c_int, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32),
+                  ctypes.c_char_p, ctypes.c_int]
+    return f
+
+
+def _set_writes(lib, writes):
+    """The register writes [(t_s, {register: value})] of the next closed-loop run (diag_shim.c)."""
+    f = _writes_fn(lib)
+    writes = list(writes or [])
+    if not writes:
+        f(0, None, None, None, 0)
+        return
+    cols = schedule_columns()
+    t = np.ascontiguousarray([w[0] for w in writes], dtype=np.float64)
+    vals = np.full((len(writes), len(cols)), -1, dtype=np.int32)
+    for i, (_, w) in enumerate(writes):
+        for name, v in w.items():
+            vals[i, cols.index(name)] = v
+    err = ctypes.create_string_buffer(512)
+    if f(len(writes), _dptr(t), _iptr(vals), err, len(err)) != 0:
+        raise RuntimeError(f"C plant: {err.value.decode(errors='replace')}")
+
+
 def config_path(name):
     if os.path.sep in name or name.endswith(".ini"):
         return os.path.abspath(name)
@@ -216,6 +281,7 @@ class CPlant(Simulator):
             raise DiagnoseInputError("libleveler_diag.so has another ABI version; rebuild it")
         self.simulate_fn = _bind(self.lib.diag_simulate)
         self.truth_fn = None   # the blind test's truth library, loaded when generate() is first called
+        self.truth_lib = None
         self.lib.diag_motor_speed.restype = ctypes.c_double
         self.lib.diag_motor_speed.argtypes = [ctypes.c_char_p, ctypes.c_double, ctypes.c_double,
                                               ctypes.c_char_p, ctypes.c_int]
@@ -328,7 +394,8 @@ class CPlant(Simulator):
         values = [[params.get(q.name, q.nominal) for q in e.params] for e in singles]
         init = self.start_state(config, run, effect, params)
         if mode == CLOSED_LOOP:
-            return self._closed_loop(config, run.t_s, run.load_n, kind, values, init)
+            return self._closed_loop(config, run.t_s, run.load_n, kind, values, init,
+                                     writes=getattr(run, "writes", None))
         if is_fine(run.t_s):      # the tick's own log: every switch is there, replayed as is
             return self._call(config, run.t_s, run.load_n, run.commands, kind, values, init)
         return self._replay_fine(config, run, kind, values, init, chatter_track(run))
@@ -347,29 +414,36 @@ class CPlant(Simulator):
         return Trace(run.t_s, {k: np.interp(rel, grid, v) for k, v in tr.signals.items()},
                      {k: v[back] for k, v in tr.commands.items()})
 
-    def _closed_loop(self, config, t_s, load_n, kind, values, init, fn=None):
+    def _closed_loop(self, config, t_s, load_n, kind, values, init, fn=None, writes=None):
         """The firmware ticks every 10 ms: simulate on that grid from the log's first
-        time, holding the logged load, then read the trace at the log's own times."""
+        time, holding the logged load, then read the trace at the log's own times.
+        writes: a schedule's register writes [(t_s from the start, {register: value})],
+        made through the firmware's register map during the run."""
         tick = 0.01
         rel = t_s - t_s[0]
+        lib = self.truth_lib if fn is not None and fn is self.truth_fn else self.lib
         if len(rel) > 1 and np.allclose(np.diff(rel), tick, atol=1e-6) and abs(rel[0]) < 1e-9:
+            _set_writes(lib, writes)
             return self._call(config, np.round(rel, 2), load_n, None, kind, values, init, fn=fn)
         grid = np.arange(0.0, rel[-1] + tick / 2, tick)
         idx = np.clip(np.searchsorted(rel, grid, side="right") - 1, 0, len(rel) - 1)
+        _set_writes(lib, writes)
         tr = self._call(config, grid, np.asarray(load_n)[idx], None, kind, values, init, fn=fn)
         back = np.clip(np.searchsorted(grid, rel, side="right") - 1, 0, len(grid) - 1)
         return Trace(t_s, {k: np.interp(rel, grid, v) for k, v in tr.signals.items()},
                      {k: v[back] for k, v in tr.commands.items()})
 
-    def generate(self, config, t_s, load_n, truth_effect, truth_params, seed=0):
+    def generate(self, config, t_s, load_n, truth_effect, truth_params, seed=0, writes=None):
         """Closed loop with a truth variant of the blind test (libleveler_truth.so, same
         ids as the candidates): truth_params is the list of the variant's values (for
         a pair "a+b", a list of the two lists). The rig starts at rest: platform
-        still, motor stopped."""
+        still, motor stopped. writes: a schedule's register writes (mode, manual
+        requests) as in _closed_loop."""
         if self.truth_fn is None:
-            self.truth_fn = _bind(_library(find_truth_library()).truth_simulate)
+            self.truth_lib = _library(find_truth_library())
+            self.truth_fn = _bind(self.truth_lib.truth_simulate)
         names = fx.parts(truth_effect)
         kind = [fx.get(e).effect_id for e in names]
         values = list(truth_params or []) if len(names) > 1 else [list(truth_params or [])] * len(names)
         return self._closed_loop(config, np.asarray(t_s, dtype=float), load_n, kind,
-                                 values, [np.nan] * 4 + [0.0], self.truth_fn)
+                                 values, [np.nan] * 4 + [0.0], self.truth_fn, writes)

@@ -1,14 +1,18 @@
 """Experiment design for look-alikes: which runnable test separates two fitted
 candidates best?
 
-Each test schedule is a load schedule (the file format of `leveler-sim
---schedule`, docs/config-format.md, which the rig runs the same way): the
-firmware in the loop decides, both fitted candidates are simulated from the
-state the logs start in, and the schedules are ranked by the predicted
-difference of the measured signals in units of the logs' own sensor noise
-(RMS over the run of the per-sample difference / noise, summed over signals).
+Each test schedule is a schedule file of `leveler-sim --schedule`
+(docs/config-format.md): load steps, or manual actuator sequences written
+through the register map (mode, manual_* requests) at constant load. The rig
+runs the same file (leveler-schedule-run). The firmware in the loop decides
+(or, in manual mode, passes the requests through its supervisor), both fitted
+candidates are simulated from the state the logs start in, and the schedules
+are ranked by the predicted difference of the measured signals in units of
+the logs' own sensor noise (RMS over the run of the per-sample difference /
+noise, summed over signals).
 """
 import os
+from dataclasses import replace
 
 import numpy as np
 
@@ -32,8 +36,8 @@ def noise_levels(runs):
     return out
 
 
-def candidate_schedules(base_n):
-    """Runnable load schedules around the logs' base load: (name, [(t_s, load_n)], end_s)."""
+def load_schedules(base_n):
+    """Runnable load schedules around the logs' base load: (name, [(t_s, load_n, {})], end_s)."""
     out = []
     for lb in (100, 200, 300):
         out.append((f"step +{lb} lb for 25 s", [(0.0, base_n), (5.0, base_n + lb * LB), (30.0, base_n)], 45.0))
@@ -45,16 +49,101 @@ def candidate_schedules(base_n):
     out.append(("pulses +250 lb, 3 s every 10 s", [(0.0, base_n)] + [
         (t, base_n + (250 * LB if k % 2 == 0 else 0.0))
         for k, t in enumerate((5.0, 8.0, 15.0, 18.0, 25.0, 28.0))], 40.0))
+    return [(name, [(t, v, {}) for t, v in steps], end) for name, steps, end in out]
+
+
+MANUAL = 2
+AUTO = 1
+OFF = {"manual_compressor": 0, "manual_spring_valve": 0, "manual_vent_valve": 0, "manual_acc_valve": 0}
+
+
+def _manual(name, base_n, moves, back_s, end_s):
+    """A manual actuator sequence at constant load: at 5 s the rig goes to manual
+    with everything off, `moves` [(t_s, {request: 0/1})] follow, at back_s every
+    request is cleared and the mode returns to auto (the controller brings the
+    platform back into its band), the run ends at end_s."""
+    rows = [(0.0, base_n, {}), (5.0, base_n, dict(OFF, mode=MANUAL))]
+    rows += [(t, base_n, dict(w)) for t, w in moves]
+    rows += [(back_s, base_n, dict(OFF, mode=AUTO)), (end_s, base_n, {})]
+    return name, rows, end_s
+
+
+def manual_schedules(base_n, accumulator=False):
+    """Runnable manual actuator sequences through the register map (mode 2, the
+    manual requests; the supervisor still watches them): short on-times that
+    separate what the load steps cannot, e.g. a valve's opening dynamics from a
+    line's delay (the compressor fills the pipe against the shut spring valve,
+    then the valve pulses: the spring's pressure answers each pulse at once
+    through a slow valve, late through a long line), a line's transport delay
+    from a tube's lag (compressor runs against the shut spring valve: P1
+    alone answers, the valves play no part), a sensor's lag from friction
+    (vent pulses too short to move the platform still move P2), the pipe's own
+    volume and delay (the compressor starting into an open valve).
+    Compressor runs stay a few seconds (the supervisor's run-time limit is
+    minutes), pressures stay far below its overpressure limits, and every
+    sequence ends back in auto. With an accumulator its valve is pulsed too."""
+    c1, c0 = {"manual_compressor": 1}, {"manual_compressor": 0}
+    v1, v0 = {"manual_spring_valve": 1}, {"manual_spring_valve": 0}
+    out = []
+    for on_s in (0.2, 0.5):
+        moves = [(5.5, c1)]
+        for k in range(4):
+            t = 7.5 + 1.5 * k
+            moves += [(t, v1), (round(t + on_s, 2), v0)]
+        out.append(_manual(f"compressor on, spring valve pulsed 4 x {on_s:g} s", base_n, moves, 13.5, 30.0))
+    # the motor needs seconds to spin up (J/D about 2.5 s): compressor runs last seconds
+    out.append(_manual("compressor 2 x 3 s against the shut spring valve", base_n,
+                       [(5.5, c1), (8.5, c0), (11.5, c1), (14.5, c0)], 17.5, 35.0))
+    out.append(_manual("compressor 2 s against the shut spring valve, then the valve open 2 s", base_n,
+                       [(5.5, c1), (7.5, v1), (9.5, dict(c0, **v0))], 11.0, 30.0))
+    out.append(_manual("compressor started into the open spring valve for 2 s", base_n,
+                       [(5.5, v1), (6.0, c1), (8.0, c0), (8.5, v0)], 10.0, 30.0))
+    vent = []
+    for k in range(3):
+        t = 6.0 + 2.0 * k
+        vent += [(t, {"manual_vent_valve": 1}), (t + 0.3, {"manual_vent_valve": 0})]
+    out.append(_manual("vent pulsed 3 x 0.3 s", base_n, vent, 12.0, 30.0))
+    out.append(_manual("vent pulsed 3 x 0.3 s with the spring valve open", base_n,
+                       [(5.5, v1)] + vent + [(11.0, v0)], 12.0, 30.0))
+    if accumulator:
+        acc = [(6.0 + 1.5 * k + d, {"manual_acc_valve": v}) for k in range(3) for d, v in ((0.0, 1), (0.3, 0))]
+        out.append(_manual("accumulator valve pulsed 3 x 0.3 s into the open spring valve", base_n,
+                           [(5.5, v1)] + acc + [(11.0, v0)], 12.0, 30.0))
     return out
 
 
+def candidate_schedules(base_n, accumulator=False):
+    """All runnable test schedules: (name, [(t_s, load_n, {register: value})], end_s)."""
+    return load_schedules(base_n) + manual_schedules(base_n, accumulator)
+
+
 def schedule_loads(t, steps):
-    """The load over each tick from t[i] of a schedule [(t_s, load_n)]: the last step
+    """The load over each tick from t[i] of a schedule [(t_s, load_n, ...)]: the last step
     at or before t[i], with half a tick of slack (the simulator's rule, stepper.h)."""
     load = np.full(len(t), steps[0][1])
-    for t0, v in steps:
-        load[t >= t0 - TICK_S / 2] = v
+    for row in steps:
+        load[t >= row[0] - TICK_S / 2] = row[1]
     return load
+
+
+def schedule_writes(steps):
+    """The register writes of a schedule: [(t_s, {register: value})] for the rows that have any."""
+    return [(float(row[0]), dict(row[2])) for row in steps if len(row) > 2 and row[2]]
+
+
+def requested(t, steps):
+    """The manual requests in force over each tick, -1 where the mode is not manual:
+    {request: array of 0, 1 or -1}."""
+    mode = np.full(len(t), -1)
+    req = {k: np.zeros(len(t), dtype=int) for k in OFF}
+    for t0, w in schedule_writes(steps):
+        at = t >= t0 - TICK_S / 2
+        if "mode" in w:
+            mode[at] = w["mode"]
+        for k in OFF:
+            if k in w:
+                req[k][at] = w[k]
+    return {k: np.where(mode == MANUAL, v, -1) for k, v in req.items()}
 
 
 def schedule_run(like, steps, end_s):
@@ -66,13 +155,28 @@ def schedule_run(like, steps, end_s):
     for s, v in like.signals.items():
         v0 = v[:n0][np.isfinite(v[:n0])]
         sig[s] = np.full(len(t), float(np.mean(v0)) if v0.size else np.nan)
-    return Run(path="design.csv", t_s=t, signals=sig, load_n=load, commands={})
+    return Run(path="design.csv", t_s=t, signals=sig, load_n=load, commands={}, writes=schedule_writes(steps))
 
 
-def separation(problem, run, a, b, noise):
-    """Predicted difference between fitted candidates a and b, in noise units."""
-    ta = problem.sim.simulate(problem.config, run, a[0], a[1], CLOSED_LOOP)
-    tb = problem.sim.simulate(problem.config, run, b[0], b[1], CLOSED_LOOP)
+def overridden(trace, steps):
+    """Ticks (after the first one following each write) where the simulated rig did not
+    drive what the manual rows request: the supervisor stepped in (a limit), so the
+    sequence is not safe to run as written."""
+    req = requested(trace.t_s - trace.t_s[0], steps)
+    bad = 0
+    for k, want in req.items():
+        drove = trace.commands.get(k.replace("manual_", ""))
+        if drove is None:
+            continue
+        on = want >= 0
+        on[1:] &= on[:-1]                     # a write takes effect at the next tick
+        bad += int(np.sum(on & (np.asarray(drove) != want)))
+    return bad
+
+
+def distance(ta, tb, noise):
+    """RMS over the run of the per-sample difference of two traces / the sensor noise,
+    summed over the logged signals (noise units)."""
     total = 0.0
     for s, sd in noise.items():
         d = (ta.signals[s] - tb.signals[s]) / sd
@@ -82,29 +186,73 @@ def separation(problem, run, a, b, noise):
     return float(np.sqrt(total))
 
 
+def jittered(run, noise, sign):
+    """The same planned run starting from a state differing by one standard deviation
+    of the sensor noise in height and P2 (imperceptible in the logs it was read from)."""
+    sig = dict(run.signals)
+    sig["height_m"] = sig["height_m"] + sign * noise.get("height_m", SIGNAL_FLOOR["height_m"])
+    sig["p_spring_pa"] = sig["p_spring_pa"] + sign * noise.get("p_spring_pa", SIGNAL_FLOOR["p_spring_pa"])
+    return replace(run, signals=sig)
+
+
+def separation(problem, run, a, b, noise, steps=None):
+    """Predicted difference between fitted candidates a and b, in noise units; the
+    knife edge: how far either candidate's own prediction moves when the start
+    moves by one standard deviation of the sensor noise (a platform held by
+    hysteresis may break free a pulse earlier or later for no reason the rig
+    can control); and whether either simulation saw the supervisor override the
+    schedule's manual rows."""
+    sim = lambda r, e: problem.sim.simulate(problem.config, r, e[0], e[1], CLOSED_LOOP)
+    ta, tb = sim(run, a), sim(run, b)
+    edge = 0.0
+    for sign in (-1.0, 1.0):
+        r = jittered(run, noise, sign)
+        edge = max(edge, distance(ta, sim(r, a), noise), distance(tb, sim(r, b), noise))
+    unsafe = bool(steps) and (overridden(ta, steps) + overridden(tb, steps)) > 0
+    return distance(ta, tb, noise), edge, unsafe
+
+
 def propose(problem, a, b, noise=None):
-    """Rank the schedules for separating a = (effect, params) from b; best first."""
+    """Rank the schedules for separating a = (effect, params) from b; best first, by
+    the predicted difference beyond the knife edge (a difference that an
+    imperceptible change of the start also makes is no evidence). A manual
+    sequence the supervisor would override (in either candidate's simulation)
+    is left out of the ranking and listed under `unsafe`."""
     noise = noise or noise_levels(problem.runs)
     like = problem.runs[0]
     base = float(like.load_n[0])
-    ranked = []
-    for name, steps, end in candidate_schedules(base):
+    ranked, unsafe = [], []
+    for name, steps, end in candidate_schedules(base, like.measured("p_acc_pa")):
         run = schedule_run(like, steps, end)
-        ranked.append({"schedule": name, "steps": [[float(t), float(v)] for t, v in steps] + [[end, base]],
-                       "separation_noise_units": separation(problem, run, a, b, noise)})
-    ranked.sort(key=lambda r: -r["separation_noise_units"])
-    return {"between": [a[0], b[0]], "noise": noise, "ranked": ranked}
+        sep, edge, over = separation(problem, run, a, b, noise, steps)
+        rows = [[float(r[0]), float(r[1]), dict(r[2])] for r in steps]
+        if rows[-1][0] < end:
+            rows.append([end, base, {}])
+        entry = {"schedule": name, "kind": "manual" if schedule_writes(steps) else "load", "steps": rows,
+                 "separation_noise_units": max(sep - edge, 0.0), "difference_noise_units": sep,
+                 "knife_edge_noise_units": edge}
+        (unsafe if over else ranked).append(entry)
+    ranked.sort(key=lambda r: (-r["separation_noise_units"], -r["difference_noise_units"]))
+    return {"between": [a[0], b[0]], "noise": noise, "ranked": ranked, "unsafe": [u["schedule"] for u in unsafe]}
 
 
-def write_schedule(path, proposal):
-    """The best schedule as a `leveler-sim --schedule` file (t_s,load_n)."""
+def write_schedule(path, proposal, columns=None):
+    """The best schedule as a `leveler-sim --schedule` file: t_s,load_n and, for a
+    manual sequence, the register columns it writes (empty cell = no write)."""
     best = proposal["ranked"][0]
+    order = columns or ["mode"] + list(OFF)
+    used = [c for c in order if any(c in row[2] for row in best["steps"] if len(row) > 2)]
     tmp = path + ".tmp"
     with open(tmp, "w") as fh:
         fh.write(f"# proposed by leveler-diagnose to tell {proposal['between'][0]} from "
                  f"{proposal['between'][1]}: {best['schedule']}\n")
-        fh.write(f"# predicted difference {best['separation_noise_units']:.1f} x the sensor noise\n")
-        fh.write("t_s,load_n\n")
-        for t, v in best["steps"]:
-            fh.write(f"{t:g},{v:.1f}\n")
+        fh.write(f"# predicted difference {best.get('difference_noise_units', best['separation_noise_units']):.1f} "
+                 f"x the sensor noise, {best['separation_noise_units']:.1f} beyond the knife edge\n")
+        if used:
+            fh.write("# mode 2 = manual (the manual_* requests drive the actuators, still supervised), 1 = auto; "
+                     "load_n is weights on a real rig (leveler-schedule-run says when)\n")
+        fh.write(",".join(["t_s", "load_n"] + used) + "\n")
+        for row in best["steps"]:
+            w = row[2] if len(row) > 2 else {}
+            fh.write(",".join([f"{row[0]:g}", f"{row[1]:.1f}"] + [str(w[c]) if c in w else "" for c in used]) + "\n")
     os.replace(tmp, path)

@@ -48,8 +48,11 @@ def _lookalike_html(result):
         parts.append(f"<h3>Proposed experiment: {html.escape(' vs '.join(exp['between']))} "
                      "(experiment.csv, a <code>leveler-sim --schedule</code> file)</h3>")
         parts.append(_table(exp["ranked"], [
-            ("schedule", lambda r: r["schedule"]),
+            ("schedule", lambda r: r["schedule"]), ("kind", lambda r: r.get("kind", "load")),
             ("predicted difference / sensor noise", lambda r: r["separation_noise_units"])]))
+        if exp.get("unsafe"):
+            parts.append("<p>Left out (the supervisor would override them): "
+                         f"{html.escape(', '.join(exp['unsafe']))}</p>")
     return parts
 
 

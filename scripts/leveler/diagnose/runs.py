@@ -29,6 +29,9 @@ class Run:
     commands: dict = field(default_factory=dict)   # name -> int array; only fully logged ones
     config: str = ""
     source: str = ""
+    # a planned run's register writes [(t_s, {register: value})] (schedule files' mode and
+    # manual columns, docs/config-format.md); closed loop only, none in a log
+    writes: list = field(default_factory=list)
 
     @property
     def name(self):
