@@ -2,13 +2,15 @@
 samples of a coarse log, and the look-alike and experiment-design checks on the
 C plant. Expectations come from the same plant run closed loop with the state
 known (the truth the replay must recover)."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from conftest import LB, thesis_schedule
 from leveler.diagnose import design, separability
 from leveler.diagnose.cplant import initial_state
-from leveler.diagnose.fit import Problem
+from leveler.diagnose.fit import Problem, cost_to_gap, run_residual, start_shifts
 from leveler.diagnose.model import REPLAY
 from leveler.diagnose.runs import Run
 
@@ -79,3 +81,34 @@ def test_a_leak_is_told_apart_from_friction_and_the_design_sees_no_difference_in
     assert all(r["separation_noise_units"] == 0.0 for r in same["ranked"])
     differ = design.propose(prob, ("leak", leak), (None, {}))
     assert differ["ranked"][0]["separation_noise_units"] > 1.0
+
+
+def started_off(cplant, log, shift):
+    """The log the plant writes when it really started `shift` (height m, P2 Pa)
+    from where its quiet start reads: the quiet start as logged, the rest from there."""
+    real = cplant.simulate(CONFIG, replace(log, start_shift=shift), None, {}, REPLAY)
+    quiet = log.t_s < 4.0          # before the load step at 5 s: platform and valves at rest
+    sig = {k: np.where(quiet, log.signals[k], v) for k, v in real.signals.items()}
+    return replace(log, signals=sig), real
+
+
+@pytest.mark.parametrize("sigmas, found", [(1.0, True), (10.0, False)])
+def test_a_held_out_run_is_scored_from_a_start_its_quiet_start_cannot_resolve(cplant, sigmas, found):
+    """A start one noise standard deviation away from the quiet start's is one no log
+    can resolve: scored from the best start within that, the nominal model is charged
+    only for the quiet start itself (which the log reads elsewhere); scored from the
+    logged start it is charged for the whole run. Ten deviations away is outside
+    what the log hides: no start in the set reproduces the run."""
+    t, load = thesis_schedule(end=40.0, on=5.0, off=25.0)
+    tr = cplant._closed_loop(CONFIG, t, load, 0, [], [np.nan] * 4 + [0.0])
+    log = Run("log.csv", t, tr.signals, load, tr.commands)
+    dh, dp = start_shifts([log])[-1]            # +1 standard deviation in height and P2
+    shifted, real = started_off(cplant, log, (sigmas * dh, sigmas * dp))
+    quiet_only = cost_to_gap(run_residual(shifted, real), 1)   # the expectation when the start is found
+    plain = Problem(cplant, CONFIG, [shifted], REPLAY).gap(None, {})
+    robust = Problem(cplant, CONFIG, [shifted], REPLAY, start_shifts([log])).gap(None, {})
+    assert plain > 1.5 * quiet_only
+    if found:
+        assert robust == pytest.approx(quiet_only, rel=1e-9)
+    else:
+        assert robust > 1.5 * quiet_only

@@ -381,6 +381,9 @@ class CPlant(Simulator):
         omega, p1_shift = self.start_motor_speed(config, run, list(init), duty)
         init[2] += p1_shift
         params = params or {}
+        dh, dp = getattr(run, "start_shift", (0.0, 0.0))
+        init[0] += dh
+        init[1] += dp
         if "sensor_lag" in fx.parts(effect):
             # the log shows what the transducers read: the plant started at reading - offset
             init[0] -= params.get("h_offset_m", 0.0)

@@ -189,10 +189,8 @@ def distance(ta, tb, noise):
 def jittered(run, noise, sign):
     """The same planned run starting from a state differing by one standard deviation
     of the sensor noise in height and P2 (imperceptible in the logs it was read from)."""
-    sig = dict(run.signals)
-    sig["height_m"] = sig["height_m"] + sign * noise.get("height_m", SIGNAL_FLOOR["height_m"])
-    sig["p_spring_pa"] = sig["p_spring_pa"] + sign * noise.get("p_spring_pa", SIGNAL_FLOOR["p_spring_pa"])
-    return replace(run, signals=sig)
+    return replace(run, start_shift=(sign * noise.get("height_m", SIGNAL_FLOOR["height_m"]),
+                                     sign * noise.get("p_spring_pa", SIGNAL_FLOOR["p_spring_pa"])))
 
 
 def separation(problem, run, a, b, noise, steps=None):

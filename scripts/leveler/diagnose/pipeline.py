@@ -87,7 +87,7 @@ def signatures(runs, problem, nominal, ranking):
     v_nom = np.array([e_nom[p] for p in phases])
     for entry in ranking:
         params = {k: v["value"] for k, v in entry["params"].items()}
-        aug = [problem.simulate(r, entry["effect"], params) for r in runs]
+        aug = [problem.best_start(r, entry["effect"], params)[0] for r in runs]
         e_aug = _phase_energy(runs, aug, labels)
         entry["per_phase_shrink_pct"] = {p: shrink(np.sqrt(e_nom[p]), np.sqrt(e_aug.get(p, 0.0)))
                                          for p in phases}
@@ -104,14 +104,6 @@ JITTERS = [(h, p) for h in (-40e-6, -10e-6, 10e-6, 40e-6) for p in (-200.0, 50.0
 
 # Traces: a named effect must beat the floor by this many points.
 FLOOR_MARGIN_PTS = 10.0
-
-
-def noise_jitters(runs):
-    """Offsets of a quarter and one standard deviation of the logs' own sensor noise:
-    imperceptible, yet on a platform held by hysteresis they move when it breaks free."""
-    noise = design.noise_levels(runs)
-    sh, sp = noise.get("height_m", 2e-5), noise.get("p_spring_pa", 50.0)
-    return [(h * sh, p * sp) for h in (-1.0, -0.25, 0.25, 1.0) for p in (-1.0, -0.25, 0.25, 1.0)]
 
 
 def sensitivity_floor(problem, nominal_gap, jitters=JITTERS):
@@ -238,7 +230,7 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
     t0 = time.perf_counter()
     candidates = candidates or fx.NAMES
     cal_problem = fit.Problem(sim, config, calib, mode)
-    hold_problem = fit.Problem(sim, config, holdout, mode)
+    hold_problem = fit.Problem(sim, config, holdout, mode, fit.start_shifts(holdout))
 
     features = _is_features(list(calib) + list(holdout))
     progress(f"[1/3] where the gap lies: nominal simulation of {len(calib) + len(holdout)} run(s)")
@@ -246,7 +238,7 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
         where = feature_where(cal_problem, list(calib) + list(holdout))
     else:
         where, _ = where_table(cal_problem, list(calib) + list(holdout))
-    nominal_hold = [hold_problem.simulate(r, None, {}) for r in holdout]
+    nominal_hold = [hold_problem.best_start(r, None, {})[0] for r in holdout]
     nominal_cal_gap = cal_problem.gap(None, {})
     nominal_hold_gap = hold_problem.gap(None, {})
     for w in where["ranked"][:3]:
@@ -299,7 +291,7 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
         floor = sensitivity_floor(hold_problem, nominal_hold_gap)
         threshold = max(THRESHOLD_PCT, floor)
     else:
-        floor = sensitivity_floor(hold_problem, nominal_hold_gap, noise_jitters(holdout))
+        floor = sensitivity_floor(hold_problem, nominal_hold_gap, fit.start_shifts(holdout))
         threshold = max(THRESHOLD_PCT, floor + FLOOR_MARGIN_PTS)
     progress(f"      sensitivity floor of the held-out {'figures' if features else 'runs'}: {floor:.1f}% "
              f"(threshold {threshold:.1f}%)")
@@ -315,7 +307,7 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
     progress(f"[3/3] before/after on held-out runs ({'winner ' + fx.combine(effects) if named else 'no effect'})")
     if named:
         top = kept or best
-        aug_hold = [hold_problem.simulate(r, top["effect"], _params_of(top)) for r in holdout]
+        aug_hold = [hold_problem.best_start(r, top["effect"], _params_of(top))[0] for r in holdout]
     else:
         aug_hold = nominal_hold
     if features:

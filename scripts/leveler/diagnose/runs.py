@@ -32,6 +32,9 @@ class Run:
     # a planned run's register writes [(t_s, {register: value})] (schedule files' mode and
     # manual columns, docs/config-format.md); closed loop only, none in a log
     writes: list = field(default_factory=list)
+    # the start the simulation takes moved by (height m, P2 Pa): what the log's
+    # quiet start cannot resolve (fit.Problem's start_shifts, design's knife edge)
+    start_shift: tuple = (0.0, 0.0)
 
     @property
     def name(self):
