@@ -275,6 +275,8 @@ def _bind(f):
 
 
 class CPlant(Simulator):
+    honours_start_shift = True
+
     def __init__(self, lib_path=None):
         self.lib = _library(lib_path or find_library())
         if self.lib.diag_abi_version() != ABI:

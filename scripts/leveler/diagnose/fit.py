@@ -64,7 +64,7 @@ class Problem:
         """(trace, residuals) of the run from the start that fits best (start_shifts)."""
         tr = self.simulate(run, effect, params)
         res = run_residual(run, tr)
-        if hasattr(run, "residual_vector") or not self.start_shifts:
+        if hasattr(run, "residual_vector") or not (self.start_shifts and self.sim.honours_start_shift):
             return tr, res
         for s in self.start_shifts:
             t2 = self.simulate(replace(run, start_shift=s), effect, params)

@@ -27,6 +27,10 @@ class Trace:
 class Simulator:
     """Base class: a plant that can be simulated for a run."""
 
+    # whether simulate() starts a run where its start_shift moves it (the C plant
+    # does); a simulator that does not is scored from the logged start only
+    honours_start_shift = False
+
     def configs(self):
         """Names of the plant configs this simulator knows."""
         raise NotImplementedError
