@@ -16,6 +16,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .cplant import schedule_apply, schedule_columns
 from .model import CLOSED_LOOP
 from .runs import Run
 
@@ -54,7 +55,12 @@ def load_schedules(base_n):
 
 MANUAL = 2
 AUTO = 1
-OFF = {"manual_compressor": 0, "manual_spring_valve": 0, "manual_vent_valve": 0, "manual_acc_valve": 0}
+MODE = "mode"   # the schedule column (register) of the mode; the others are manual requests
+
+
+def requests_off():
+    """Every manual request cleared: {register: 0} over the C table of schedule columns."""
+    return {c: 0 for c in schedule_columns() if c != MODE}
 
 
 def _manual(name, base_n, moves, back_s, end_s):
@@ -62,9 +68,10 @@ def _manual(name, base_n, moves, back_s, end_s):
     with everything off, `moves` [(t_s, {request: 0/1})] follow, at back_s every
     request is cleared and the mode returns to auto (the controller brings the
     platform back into its band), the run ends at end_s."""
-    rows = [(0.0, base_n, {}), (5.0, base_n, dict(OFF, mode=MANUAL))]
+    off = requests_off()
+    rows = [(0.0, base_n, {}), (5.0, base_n, dict(off, **{MODE: MANUAL}))]
     rows += [(t, base_n, dict(w)) for t, w in moves]
-    rows += [(back_s, base_n, dict(OFF, mode=AUTO)), (end_s, base_n, {})]
+    rows += [(back_s, base_n, dict(off, **{MODE: AUTO})), (end_s, base_n, {})]
     return name, rows, end_s
 
 
@@ -118,12 +125,9 @@ def candidate_schedules(base_n, accumulator=False):
 
 
 def schedule_loads(t, steps):
-    """The load over each tick from t[i] of a schedule [(t_s, load_n, ...)]: the last step
-    at or before t[i], with half a tick of slack (the simulator's rule, stepper.h)."""
-    load = np.full(len(t), steps[0][1])
-    for row in steps:
-        load[t >= row[0] - TICK_S / 2] = row[1]
-    return load
+    """The load over each tick from t[i] of a schedule [(t_s, load_n, ...)], by the
+    simulator's own rule (stepper.h, asked through cplant.schedule_apply)."""
+    return schedule_apply(t, steps)[0]
 
 
 def schedule_writes(steps):
@@ -132,18 +136,13 @@ def schedule_writes(steps):
 
 
 def requested(t, steps):
-    """The manual requests in force over each tick, -1 where the mode is not manual:
-    {request: array of 0, 1 or -1}."""
-    mode = np.full(len(t), -1)
-    req = {k: np.zeros(len(t), dtype=int) for k in OFF}
-    for t0, w in schedule_writes(steps):
-        at = t >= t0 - TICK_S / 2
-        if "mode" in w:
-            mode[at] = w["mode"]
-        for k in OFF:
-            if k in w:
-                req[k][at] = w[k]
-    return {k: np.where(mode == MANUAL, v, -1) for k, v in req.items()}
+    """The manual requests in force over each tick from t[i], -1 where the mode is not
+    manual: {request: array of 0, 1 or -1}. Which rows are due when, and what the
+    registers then hold, the C side says (the firmware's register map after the
+    simulator's writes): the rule lives in the stepper alone."""
+    regs = schedule_apply(t, steps)[1]
+    manual = regs[MODE] == MANUAL
+    return {k: np.where(manual, v, -1) for k, v in regs.items() if k != MODE}
 
 
 def schedule_run(like, steps, end_s):
@@ -238,7 +237,7 @@ def write_schedule(path, proposal, columns=None):
     """The best schedule as a `leveler-sim --schedule` file: t_s,load_n and, for a
     manual sequence, the register columns it writes (empty cell = no write)."""
     best = proposal["ranked"][0]
-    order = columns or ["mode"] + list(OFF)
+    order = columns or schedule_columns()
     used = [c for c in order if any(c in row[2] for row in best["steps"] if len(row) > 2)]
     tmp = path + ".tmp"
     with open(tmp, "w") as fh:
