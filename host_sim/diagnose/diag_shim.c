@@ -24,6 +24,9 @@
 /* Version of this ABI; cplant.py refuses a library with another. */
 int diag_abi_version(void) { return 4; }
 
+/* The simulator's tick, s (SIM_TICK_S: the firmware's LEVELER_TICK_MS). */
+double diag_tick_s(void) { return SIM_TICK_S; }
+
 /* Loads a config file; 0 or -1 with the loader's file:line message in err. */
 int diag_config_check(const char *path, char *err, int err_len)
 {

@@ -71,6 +71,20 @@ def scenario_loads(t_s, scenario):
     return out
 
 
+@functools.lru_cache(maxsize=None)
+def tick_s():
+    """The simulator's tick in s (SIM_TICK_S: the firmware's LEVELER_TICK_MS)."""
+    f = _diag_library().diag_tick_s
+    f.restype = ctypes.c_double
+    return float(f())
+
+
+def tick_grid(end_s):
+    """The simulator's tick times from 0 to end_s (the tick at end_s included, 1 us of
+    slack against rounding), rounded to the 10 ms they stand for."""
+    return np.round(np.arange(0.0, end_s + 1e-6, tick_s()), 2)
+
+
 MAX_SCHEDULE_ROWS = 1024
 
 
@@ -465,7 +479,7 @@ class CPlant(Simulator):
         time, holding the logged load, then read the trace at the log's own times.
         writes: a schedule's register writes [(t_s from the start, {register: value})],
         made through the firmware's register map during the run."""
-        tick = 0.01
+        tick = tick_s()
         rel = t_s - t_s[0]
         lib = self.truth_lib if fn is not None and fn is self.truth_fn else self.lib
         if len(rel) > 1 and np.allclose(np.diff(rel), tick, atol=1e-6) and abs(rel[0]) < 1e-9:

@@ -16,12 +16,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from .cplant import schedule_apply, schedule_columns
+from .cplant import schedule_apply, schedule_columns, tick_grid
 from .model import CLOSED_LOOP
 from .runs import Run
 
 LB = 4.4482216152605
-TICK_S = 0.01
 SIGNAL_FLOOR = {"height_m": 2e-5, "p_spring_pa": 50.0, "p_pipe_pa": 50.0, "p_acc_pa": 50.0}
 
 
@@ -147,7 +146,7 @@ def requested(t, steps):
 
 def schedule_run(like, steps, end_s):
     """A closed-loop run of the schedule, starting in the state `like` starts in."""
-    t = np.round(np.arange(0.0, end_s + TICK_S / 2, TICK_S), 2)
+    t = tick_grid(end_s)
     load = schedule_loads(t, steps)
     n0 = max(1, int(np.searchsorted(like.t_s, like.t_s[0] + 0.5)))
     sig = {}
