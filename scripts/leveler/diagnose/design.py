@@ -11,12 +11,13 @@ are ranked by the predicted difference of the measured signals in units of
 the logs' own sensor noise (RMS over the run of the per-sample difference /
 noise, summed over signals).
 """
+import json
 import os
 from dataclasses import replace
 
 import numpy as np
 
-from .cplant import schedule_apply, schedule_columns, tick_grid
+from .cplant import ROOT, schedule_apply, schedule_columns, tick_grid
 from .model import CLOSED_LOOP
 from .runs import Run
 
@@ -52,9 +53,17 @@ def load_schedules(base_n):
     return [(name, [(t, v, {}) for t, v in steps], end) for name, steps, end in out]
 
 
-MANUAL = 2
-AUTO = 1
 MODE = "mode"   # the schedule column (register) of the mode; the others are manual requests
+
+
+def _mode_values():
+    """The mode register's values by name, from the register map's one source."""
+    with open(os.path.join(ROOT, "firmware", "regmap", "registers.json")) as fh:
+        return next(r for r in json.load(fh)["registers"] if r["name"] == MODE)["enum"]
+
+
+_MODES = _mode_values()
+AUTO, MANUAL = _MODES["auto"], _MODES["manual"]
 
 
 def requests_off():
@@ -245,7 +254,8 @@ def write_schedule(path, proposal, columns=None):
         fh.write(f"# predicted difference {best.get('difference_noise_units', best['separation_noise_units']):.1f} "
                  f"x the sensor noise, {best['separation_noise_units']:.1f} beyond the knife edge\n")
         if used:
-            fh.write("# mode 2 = manual (the manual_* requests drive the actuators, still supervised), 1 = auto; "
+            fh.write(f"# {MODE} {MANUAL} = manual (the manual_* requests drive the actuators, still supervised), "
+                     f"{AUTO} = auto; "
                      "load_n is weights on a real rig (leveler-schedule-run says when)\n")
         fh.write(",".join(["t_s", "load_n"] + used) + "\n")
         for row in best["steps"]:
