@@ -169,7 +169,8 @@ static sim_schedule_writer take_schedule_writes(void)
  * that tick's writes (sim_schedule_write_due from the firmware's power-up
  * settings, read back with leveler_regs_read): so the diagnosis asks, and
  * never re-implements, which mode and manual requests are in force when.
- * Resets the firmware (as a closed-loop run does). 0, or -1 with err.
+ * Resets the firmware (as a closed-loop run does) and drops writes set for
+ * the next run (diag_set_schedule_writes). 0, or -1 with err.
  */
 int diag_schedule_apply(int rows, const double *row_t_s, const double *row_load_n, const int32_t *values, int n,
                         const double *t_s, double *load_out, int32_t *regs_out, char *err, int err_len)
