@@ -210,6 +210,13 @@ const char *diag_schedule_column(int j)
     return j >= 0 && j < SIM_SCHEDULE_REG_COUNT ? sim_schedule_regs[j].name : NULL;
 }
 
+/* The actuator schedule column 2 + j asks for in manual mode (hal_output: the
+ * column of cmd_out), -1 for one that is no manual request or past the last. */
+int diag_schedule_column_output(int j)
+{
+    return j >= 0 && j < SIM_SCHEDULE_REG_COUNT ? sim_schedule_regs[j].output : -1;
+}
+
 /* A schedule file read by the simulator's one parser (schedule.c): up to cap
  * rows into t_s, load_n and values (cap x SIM_SCHEDULE_REG_COUNT, -1 = no
  * write). The row count, or -1 with "file:line: field: ..." in err. */

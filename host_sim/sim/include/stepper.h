@@ -39,6 +39,7 @@ typedef struct {
     uint8_t table;     /* leveler_table (leveler/regmap.h) */
     uint16_t address;  /* 0-based protocol address */
     uint16_t max;      /* values 0..max */
+    int8_t output;     /* the actuator (hal_output) a manual request asks for; -1: not a request */
 } sim_schedule_reg;
 /* mode, manual_compressor, manual_spring_valve, manual_vent_valve, manual_acc_valve */
 extern const sim_schedule_reg sim_schedule_regs[SIM_SCHEDULE_REG_COUNT];

@@ -102,6 +102,16 @@ def schedule_columns():
     return tuple(out)
 
 
+@functools.lru_cache(maxsize=None)
+def request_commands():
+    """{manual request column: the actuator it asks for, named as COMMANDS (the trace's
+    commands)}, from the C table of schedule columns."""
+    f = _diag_library().diag_schedule_column_output
+    f.restype = ctypes.c_int
+    f.argtypes = [ctypes.c_int]
+    return {c: COMMANDS[f(j)] for j, c in enumerate(schedule_columns()) if f(j) >= 0}
+
+
 def read_schedule(path):
     """A schedule file by the simulator's one parser (host_sim/sim/schedule.c):
     [(t_s, load_n, {register: value})] (the dict holds the row's writes, may be

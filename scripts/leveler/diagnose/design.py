@@ -17,7 +17,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .cplant import ROOT, schedule_apply, schedule_columns, tick_grid
+from .cplant import ROOT, request_commands, schedule_apply, schedule_columns, tick_grid
 from .model import CLOSED_LOOP
 from .runs import Run
 
@@ -53,7 +53,7 @@ def load_schedules(base_n):
     return [(name, [(t, v, {}) for t, v in steps], end) for name, steps, end in out]
 
 
-MODE = "mode"   # the schedule column (register) of the mode; the others are manual requests
+MODE = "mode"   # the schedule column (register) of the mode
 
 
 def _mode_values():
@@ -68,7 +68,7 @@ AUTO, MANUAL = _MODES["auto"], _MODES["manual"]
 
 def requests_off():
     """Every manual request cleared: {register: 0} over the C table of schedule columns."""
-    return {c: 0 for c in schedule_columns() if c != MODE}
+    return {c: 0 for c in request_commands()}
 
 
 def _manual(name, base_n, moves, back_s, end_s):
@@ -150,7 +150,7 @@ def requested(t, steps):
     simulator's writes): the rule lives in the stepper alone."""
     regs = schedule_apply(t, steps)[1]
     manual = regs[MODE] == MANUAL
-    return {k: np.where(manual, v, -1) for k, v in regs.items() if k != MODE}
+    return {k: np.where(manual, regs[k], -1) for k in request_commands()}
 
 
 def schedule_run(like, steps, end_s):
@@ -172,7 +172,7 @@ def overridden(trace, steps):
     req = requested(trace.t_s - trace.t_s[0], steps)
     bad = 0
     for k, want in req.items():
-        drove = trace.commands.get(k.replace("manual_", ""))
+        drove = trace.commands.get(request_commands()[k])
         if drove is None:
             continue
         on = want >= 0
