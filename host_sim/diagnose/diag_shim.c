@@ -16,11 +16,16 @@
 
 #include "diag.h"
 #include "effects.h"
+#include "leveler/app.h"
+#include "leveler/regmap.h"
 #include "plant.h"
 #include "simloop.h"
 
 /* Version of this ABI; cplant.py refuses a library with another. */
-int diag_abi_version(void) { return 3; }
+int diag_abi_version(void) { return 4; }
+
+/* The simulator's tick, s (SIM_TICK_S: the firmware's LEVELER_TICK_MS). */
+double diag_tick_s(void) { return SIM_TICK_S; }
 
 /* Loads a config file; 0 or -1 with the loader's file:line message in err. */
 int diag_config_check(const char *path, char *err, int err_len)
@@ -110,11 +115,11 @@ static int check_time_base(int n, const double *t_s, bool closed, char *err, int
 static sim_load_step write_rows[DIAG_MAX_WRITE_ROWS];
 static size_t write_count;
 
-/* The writes of the next diag_run (closed loop; one run only, then cleared):
- * n rows at t_s[i] with values[i * SIM_SCHEDULE_REG_COUNT + j] for
- * sim_schedule_regs[j] (diag_schedule_column), -1 = no write. The firmware
- * gets them through its register map (simloop.h). 0, or -1 with err. */
-int diag_set_schedule_writes(int n, const double *t_s, const int32_t *values, char *err, int err_len)
+/* n schedule rows at t_s[i] (strictly increasing) into write_rows: the load
+ * load_n[i] (load_n may be NULL: writes only) and values[i *
+ * SIM_SCHEDULE_REG_COUNT + j] for sim_schedule_regs[j] (diag_schedule_column),
+ * -1 = no write. 0, or -1 with err. */
+static int take_rows(int n, const double *t_s, const double *load_n, const int32_t *values, char *err, int err_len)
 {
     write_count = 0;
     if (n < 0 || n > DIAG_MAX_WRITE_ROWS) {
@@ -122,7 +127,7 @@ int diag_set_schedule_writes(int n, const double *t_s, const int32_t *values, ch
         return -1;
     }
     for (int i = 0; i < n; i++) {
-        sim_load_step row = {.t_s = t_s[i]};
+        sim_load_step row = {.t_s = t_s[i], .load_n = load_n ? load_n[i] : 0.0};
         for (int j = 0; j < SIM_SCHEDULE_REG_COUNT; j++) {
             int32_t v = values[i * SIM_SCHEDULE_REG_COUNT + j];
             if (v < -1 || v > sim_schedule_regs[j].max || (i > 0 && !(t_s[i] > t_s[i - 1]))) {
@@ -141,6 +146,14 @@ int diag_set_schedule_writes(int n, const double *t_s, const int32_t *values, ch
     return 0;
 }
 
+/* The writes of the next diag_run (closed loop; one run only, then cleared):
+ * n rows as take_rows takes them. The firmware gets them through its register
+ * map (simloop.h). 0, or -1 with err. */
+int diag_set_schedule_writes(int n, const double *t_s, const int32_t *values, char *err, int err_len)
+{
+    return take_rows(n, t_s, NULL, values, err, err_len);
+}
+
 static sim_schedule_writer take_schedule_writes(void)
 {
     sim_schedule_writer w = {.steps = write_rows, .count = write_count};
@@ -148,10 +161,60 @@ static sim_schedule_writer take_schedule_writes(void)
     return w;
 }
 
+/*
+ * A schedule's rows (as take_rows) applied at the times t_s[i] by the
+ * simulator's own rules, without a plant: load_out[i] the load over the tick
+ * from t_s[i] (sim_schedule_load_at); regs_out (n x SIM_SCHEDULE_REG_COUNT)
+ * what each schedule register holds in the firmware's register map after
+ * that tick's writes (sim_schedule_write_due from the firmware's power-up
+ * settings, read back with leveler_regs_read): so the diagnosis asks, and
+ * never re-implements, which mode and manual requests are in force when.
+ * Resets the firmware (as a closed-loop run does) and drops writes set for
+ * the next run (diag_set_schedule_writes). 0, or -1 with err.
+ */
+int diag_schedule_apply(int rows, const double *row_t_s, const double *row_load_n, const int32_t *values, int n,
+                        const double *t_s, double *load_out, int32_t *regs_out, char *err, int err_len)
+{
+    if (rows < 1) {
+        snprintf(err, (size_t)err_len, "schedule: no rows");
+        return -1;
+    }
+    if (take_rows(rows, row_t_s, row_load_n, values, err, err_len) != 0)
+        return -1;
+    sim_schedule_cursor cursor = {write_rows, write_count, 0};
+    sim_schedule_writer writer = take_schedule_writes();
+    leveler_app_init();
+    for (int i = 0; i < n; i++) {
+        load_out[i] = sim_schedule_load_at(&cursor, t_s[i]);
+        sim_schedule_write_due(&writer, t_s[i]);
+        if (writer.failed) {
+            snprintf(err, (size_t)err_len, "%s", writer.err);
+            return -1;
+        }
+        for (int j = 0; j < SIM_SCHEDULE_REG_COUNT; j++) {
+            const sim_schedule_reg *r = &sim_schedule_regs[j];
+            uint16_t v = 0;
+            if (leveler_regs_read((leveler_table)r->table, r->address, 1, &v) != LEVELER_REG_OK) {
+                snprintf(err, (size_t)err_len, "register %s: not readable", r->name);
+                return -1;
+            }
+            regs_out[i * SIM_SCHEDULE_REG_COUNT + j] = v;
+        }
+    }
+    return 0;
+}
+
 /* Name of schedule column 2 + j (sim_schedule_regs[j]: a register's name), NULL past the last. */
 const char *diag_schedule_column(int j)
 {
     return j >= 0 && j < SIM_SCHEDULE_REG_COUNT ? sim_schedule_regs[j].name : NULL;
+}
+
+/* The actuator schedule column 2 + j asks for in manual mode (hal_output: the
+ * column of cmd_out), -1 for one that is no manual request or past the last. */
+int diag_schedule_column_output(int j)
+{
+    return j >= 0 && j < SIM_SCHEDULE_REG_COUNT ? sim_schedule_regs[j].output : -1;
 }
 
 /* A schedule file read by the simulator's one parser (schedule.c): up to cap

@@ -40,10 +40,9 @@ static int write_reg(sim_schedule_writer *w, const sim_load_step *row, int j)
     return -1;
 }
 
-/* The rows due at t_s, each in sim_schedule_write_order. */
-static void schedule_writes(sim_schedule_writer *w, double t_s)
+void sim_schedule_write_due(sim_schedule_writer *w, double t_s)
 {
-    while (!w->failed && w->next < w->count && w->steps[w->next].t_s <= t_s + 0.5 * SIM_TICK_S) {
+    while (!w->failed && w->next < w->count && sim_schedule_due(w->steps[w->next].t_s, t_s)) {
         const sim_load_step *row = &w->steps[w->next++];
         for (int k = 0; k < SIM_SCHEDULE_REG_COUNT && !w->failed; k++) {
             int j = sim_schedule_write_order[k];
@@ -56,7 +55,7 @@ static void schedule_writes(sim_schedule_writer *w, double t_s)
 void sim_firmware_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT])
 {
     if (user)
-        schedule_writes(user, s->t_s_now);
+        sim_schedule_write_due(user, s->t_s_now);
     sim_stepper_counts(s, hal_state.counts);
     hal_state.now_ms = (uint32_t)(s->k * LEVELER_TICK_MS);
     leveler_app_tick();

@@ -21,7 +21,7 @@ void sim_initial_outputs(const plant_config *cfg, bool out[HAL_OUT_COUNT])
 
 double sim_schedule_load_at(sim_schedule_cursor *c, double t_s)
 {
-    while (c->i + 1 < c->count && c->steps[c->i + 1].t_s <= t_s + 0.5 * SIM_TICK_S)
+    while (c->i + 1 < c->count && sim_schedule_due(c->steps[c->i + 1].t_s, t_s))
         c->i++;
     return c->steps[c->i].load_n;
 }

@@ -58,7 +58,7 @@ void sim_firmware_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT]);
 /* A schedule's register writes (mode, manual requests; stepper.h), made the
  * way a SCADA makes them: through the firmware's register map
  * (leveler_regs_write, validated all-or-nothing), before the firmware's tick
- * at or after each row's time (half a tick of slack, as the load rule).
+ * each row is due at (sim_schedule_due, the loads' rule).
  * Within a row the manual requests go first, then the mode. Pass it as
  * sim_firmware_commands' user (NULL: no writes). A refused write stops the
  * writes and leaves the reason in failed / err; the caller checks after each
@@ -70,5 +70,9 @@ typedef struct {
     int failed;
     char err[200];
 } sim_schedule_writer;
+
+/* The writer's rows due at t_s (the rule above), each in
+ * sim_schedule_write_order; sim_firmware_commands calls it before each tick. */
+void sim_schedule_write_due(sim_schedule_writer *w, double t_s);
 
 #endif /* LEVELER_SIMLOOP_H */

@@ -39,6 +39,7 @@ typedef struct {
     uint8_t table;     /* leveler_table (leveler/regmap.h) */
     uint16_t address;  /* 0-based protocol address */
     uint16_t max;      /* values 0..max */
+    int8_t output;     /* the actuator (hal_output) a manual request asks for; -1: not a request */
 } sim_schedule_reg;
 /* mode, manual_compressor, manual_spring_valve, manual_vent_valve, manual_acc_valve */
 extern const sim_schedule_reg sim_schedule_regs[SIM_SCHEDULE_REG_COUNT];
@@ -64,9 +65,17 @@ size_t sim_schedule_from_config(const plant_config *cfg, sim_load_step out[4], d
  * "file:line: field: ..." in err on failure. */
 int sim_schedule_load(const char *path, sim_load_step **steps, size_t *count, char *err, size_t err_len);
 
+/* THE rule of a schedule row's time: a row at row_t_s is in force over the
+ * tick starting at t_s when it is at or before t_s, with half a tick of slack
+ * against rounding (the loads below, the register writes of simloop.h). */
+static inline bool sim_schedule_due(double row_t_s, double t_s)
+{
+    return row_t_s <= t_s + 0.5 * SIM_TICK_S;
+}
+
 /* THE scenario-to-load rule: the load over the tick starting at t_s is the
- * last step at or before t_s (half a tick of slack against rounding). The
- * cursor only moves forward; past the last step the last load holds. */
+ * last step due (sim_schedule_due). The cursor only moves forward; past the
+ * last step the last load holds. */
 typedef struct {
     const sim_load_step *steps;
     size_t count;

@@ -43,9 +43,8 @@ def main(argv=None):
 
 
 def _thesis_grid():
-    import numpy as np
     from . import cplant
-    t = np.round(np.arange(0.0, 55.0 + 1e-9, 0.01), 2)
+    t = cplant.tick_grid(55.0)
     lb = blindtest.LB
     load = cplant.scenario_loads(t, {"base_load_n": 900 * lb, "step_load_n": 200 * lb,
                                      "step_on_s": 5.0, "step_off_s": 35.0, "end_s": 55.0})

@@ -42,7 +42,7 @@ from leveler import thesis
 from . import design
 from . import effects as fx
 from . import runs
-from .cplant import CONFIG_DIR, read_schedule
+from .cplant import CONFIG_DIR, read_schedule, tick_grid
 from .model import make_simulator
 
 LB = thesis.N_PER_LBF
@@ -126,7 +126,7 @@ def log_times(rng, kind, end):
     """Sample times of a log: 100 Hz on the tick grid, or a jittered rig rate."""
     lo, hi, jit = LOG_KINDS[kind][:3]
     if jit == 0.0:
-        return np.round(np.arange(0.0, end + 1e-9, 0.01), 2)
+        return tick_grid(end)
     dt = 1.0 / rng.uniform(lo, hi)
     t = np.arange(0.0, end, dt) + rng.uniform(-jit, jit, int(np.ceil(end / dt))) * dt
     t[0] = 0.0
@@ -141,7 +141,7 @@ def quantise(v, span, bits):
 def write_truth_log(sim, path, rig, system, steps, end, effect, params, kind, rng, writes=None):
     """Run the truth closed loop on the 10 ms tick and write the log the rig would
     (writes: a schedule's mode / manual rows, made through the firmware's register map)."""
-    t = np.round(np.arange(0.0, end + 1e-9, 0.01), 2)
+    t = tick_grid(end)
     load = design.schedule_loads(t, steps)
     tr = sim.generate(rig, t, load, effect, params, 0, **({"writes": writes} if writes else {}))
     ts = log_times(rng, kind, end)

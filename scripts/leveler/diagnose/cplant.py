@@ -17,7 +17,7 @@ from .model import CLOSED_LOOP, Simulator, Trace
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
 CONFIG_DIR = os.path.join(ROOT, "host_sim", "configs")
-ABI = 3
+ABI = 4
 MAX_PARAMS = 8
 SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
 COMMANDS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
@@ -50,10 +50,18 @@ def _library(path):
     return ctypes.CDLL(path)
 
 
+def _diag_library(path=None):
+    """libleveler_diag.so, refused when built for another ABI (rebuild it)."""
+    lib = _library(path or find_library())
+    if lib.diag_abi_version() != ABI:
+        raise DiagnoseInputError("libleveler_diag.so has another ABI version; rebuild it")
+    return lib
+
+
 def scenario_loads(t_s, scenario):
     """The load over each tick from t_s[i] of a scenario (dict of the config's [scenario]
     keys base_load_n, step_load_n, step_on_s, step_off_s, end_s), by the simulator's rule."""
-    f = _library(find_library()).diag_scenario_loads
+    f = _diag_library().diag_scenario_loads
     f.restype = None
     f.argtypes = [ctypes.c_double] * 5 + [ctypes.c_int, ctypes.POINTER(ctypes.c_double),
                                           ctypes.POINTER(ctypes.c_double)]
@@ -63,6 +71,20 @@ def scenario_loads(t_s, scenario):
     return out
 
 
+@functools.lru_cache(maxsize=None)
+def tick_s():
+    """The simulator's tick in s (SIM_TICK_S: the firmware's LEVELER_TICK_MS)."""
+    f = _diag_library().diag_tick_s
+    f.restype = ctypes.c_double
+    return float(f())
+
+
+def tick_grid(end_s):
+    """The simulator's tick times from 0 to end_s (the tick at end_s included, 1 us of
+    slack against rounding), rounded to the 10 ms they stand for."""
+    return np.round(np.arange(0.0, end_s + 1e-6, tick_s()), 2)
+
+
 MAX_SCHEDULE_ROWS = 1024
 
 
@@ -70,7 +92,7 @@ MAX_SCHEDULE_ROWS = 1024
 def schedule_columns():
     """The register columns a schedule file may have (mode and the manual requests),
     named as the register map names them, in the C table's order (stepper.h)."""
-    lib = _library(find_library())
+    lib = _diag_library()
     lib.diag_schedule_column.restype = ctypes.c_char_p
     lib.diag_schedule_column.argtypes = [ctypes.c_int]
     out, j = [], 0
@@ -80,11 +102,21 @@ def schedule_columns():
     return tuple(out)
 
 
+@functools.lru_cache(maxsize=None)
+def request_commands():
+    """{manual request column: the actuator it asks for, named as COMMANDS (the trace's
+    commands)}, from the C table of schedule columns."""
+    f = _diag_library().diag_schedule_column_output
+    f.restype = ctypes.c_int
+    f.argtypes = [ctypes.c_int]
+    return {c: COMMANDS[f(j)] for j, c in enumerate(schedule_columns()) if f(j) >= 0}
+
+
 def read_schedule(path):
     """A schedule file by the simulator's one parser (host_sim/sim/schedule.c):
     [(t_s, load_n, {register: value})] (the dict holds the row's writes, may be
     empty), the end time. Errors name the file, line and field."""
-    lib = _library(find_library())
+    lib = _diag_library()
     f = lib.diag_schedule_read
     f.restype = ctypes.c_int
     f.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
@@ -110,6 +142,17 @@ def _writes_fn(lib):
     return f
 
 
+def _write_values(rows):
+    """The register cells of schedule rows [(t_s, {register: value})] as the C side
+    takes them: rows x columns in schedule_columns()' order, -1 = no write."""
+    cols = schedule_columns()
+    vals = np.full((len(rows), len(cols)), -1, dtype=np.int32)
+    for i, (_, w) in enumerate(rows):
+        for name, v in w.items():
+            vals[i, cols.index(name)] = v
+    return vals
+
+
 def _set_writes(lib, writes):
     """The register writes [(t_s, {register: value})] of the next closed-loop run (diag_shim.c)."""
     f = _writes_fn(lib)
@@ -117,15 +160,41 @@ def _set_writes(lib, writes):
     if not writes:
         f(0, None, None, None, 0)
         return
-    cols = schedule_columns()
     t = np.ascontiguousarray([w[0] for w in writes], dtype=np.float64)
-    vals = np.full((len(writes), len(cols)), -1, dtype=np.int32)
-    for i, (_, w) in enumerate(writes):
-        for name, v in w.items():
-            vals[i, cols.index(name)] = v
+    vals = _write_values(writes)
     err = ctypes.create_string_buffer(512)
     if f(len(writes), _dptr(t), _iptr(vals), err, len(err)) != 0:
         raise RuntimeError(f"C plant: {err.value.decode(errors='replace')}")
+
+
+@functools.lru_cache(maxsize=None)
+def _apply_fn(lib):
+    f = lib.diag_schedule_apply
+    f.restype = ctypes.c_int
+    f.argtypes = [ctypes.c_int, ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_double),
+                  ctypes.POINTER(ctypes.c_int32), ctypes.c_int, ctypes.POINTER(ctypes.c_double),
+                  ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int32), ctypes.c_char_p, ctypes.c_int]
+    return f
+
+
+def schedule_apply(t_s, steps):
+    """A schedule [(t_s, load_n[, {register: value}])] at the times t_s (increasing) by
+    the simulator's own rules (diag_schedule_apply): the load over each tick from
+    t_s[i], and {register: array} what each schedule column's register holds in the
+    firmware's register map after that tick's writes (mode and manual requests)."""
+    lib = _diag_library()
+    rows = [(float(r[0]), dict(r[2]) if len(r) > 2 else {}) for r in steps]
+    rt = np.ascontiguousarray([r[0] for r in rows], dtype=np.float64)
+    rl = np.ascontiguousarray([float(r[1]) for r in steps], dtype=np.float64)
+    vals = _write_values(rows)
+    t = np.ascontiguousarray(t_s, dtype=np.float64)
+    load = np.empty(len(t))
+    regs = np.empty((len(t), len(schedule_columns())), dtype=np.int32)
+    err = ctypes.create_string_buffer(512)
+    if _apply_fn(lib)(len(rows), _dptr(rt), _dptr(rl), _iptr(vals), len(t), _dptr(t), _dptr(load), _iptr(regs),
+                      err, len(err)) != 0:
+        raise DiagnoseInputError(f"schedule: {err.value.decode(errors='replace')}")
+    return load, {c: regs[:, j].copy() for j, c in enumerate(schedule_columns())}
 
 
 def config_path(name):
@@ -278,9 +347,7 @@ class CPlant(Simulator):
     honours_start_shift = True
 
     def __init__(self, lib_path=None):
-        self.lib = _library(lib_path or find_library())
-        if self.lib.diag_abi_version() != ABI:
-            raise DiagnoseInputError("libleveler_diag.so has another ABI version; rebuild it")
+        self.lib = _diag_library(lib_path)
         self.simulate_fn = _bind(self.lib.diag_simulate)
         self.truth_fn = None   # the blind test's truth library, loaded when generate() is first called
         self.truth_lib = None
@@ -424,7 +491,7 @@ class CPlant(Simulator):
         time, holding the logged load, then read the trace at the log's own times.
         writes: a schedule's register writes [(t_s from the start, {register: value})],
         made through the firmware's register map during the run."""
-        tick = 0.01
+        tick = tick_s()
         rel = t_s - t_s[0]
         lib = self.truth_lib if fn is not None and fn is self.truth_fn else self.lib
         if len(rel) > 1 and np.allclose(np.diff(rel), tick, atol=1e-6) and abs(rel[0]) < 1e-9:

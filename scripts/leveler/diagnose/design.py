@@ -11,16 +11,17 @@ are ranked by the predicted difference of the measured signals in units of
 the logs' own sensor noise (RMS over the run of the per-sample difference /
 noise, summed over signals).
 """
+import json
 import os
 from dataclasses import replace
 
 import numpy as np
 
+from .cplant import ROOT, request_commands, schedule_apply, schedule_columns, tick_grid
 from .model import CLOSED_LOOP
 from .runs import Run
 
 LB = 4.4482216152605
-TICK_S = 0.01
 SIGNAL_FLOOR = {"height_m": 2e-5, "p_spring_pa": 50.0, "p_pipe_pa": 50.0, "p_acc_pa": 50.0}
 
 
@@ -52,9 +53,22 @@ def load_schedules(base_n):
     return [(name, [(t, v, {}) for t, v in steps], end) for name, steps, end in out]
 
 
-MANUAL = 2
-AUTO = 1
-OFF = {"manual_compressor": 0, "manual_spring_valve": 0, "manual_vent_valve": 0, "manual_acc_valve": 0}
+MODE = "mode"   # the schedule column (register) of the mode
+
+
+def _mode_values():
+    """The mode register's values by name, from the register map's one source."""
+    with open(os.path.join(ROOT, "firmware", "regmap", "registers.json")) as fh:
+        return next(r for r in json.load(fh)["registers"] if r["name"] == MODE)["enum"]
+
+
+_MODES = _mode_values()
+AUTO, MANUAL = _MODES["auto"], _MODES["manual"]
+
+
+def requests_off():
+    """Every manual request cleared: {register: 0} over the C table of schedule columns."""
+    return {c: 0 for c in request_commands()}
 
 
 def _manual(name, base_n, moves, back_s, end_s):
@@ -62,9 +76,10 @@ def _manual(name, base_n, moves, back_s, end_s):
     with everything off, `moves` [(t_s, {request: 0/1})] follow, at back_s every
     request is cleared and the mode returns to auto (the controller brings the
     platform back into its band), the run ends at end_s."""
-    rows = [(0.0, base_n, {}), (5.0, base_n, dict(OFF, mode=MANUAL))]
+    off = requests_off()
+    rows = [(0.0, base_n, {}), (5.0, base_n, dict(off, **{MODE: MANUAL}))]
     rows += [(t, base_n, dict(w)) for t, w in moves]
-    rows += [(back_s, base_n, dict(OFF, mode=AUTO)), (end_s, base_n, {})]
+    rows += [(back_s, base_n, dict(off, **{MODE: AUTO})), (end_s, base_n, {})]
     return name, rows, end_s
 
 
@@ -118,12 +133,9 @@ def candidate_schedules(base_n, accumulator=False):
 
 
 def schedule_loads(t, steps):
-    """The load over each tick from t[i] of a schedule [(t_s, load_n, ...)]: the last step
-    at or before t[i], with half a tick of slack (the simulator's rule, stepper.h)."""
-    load = np.full(len(t), steps[0][1])
-    for row in steps:
-        load[t >= row[0] - TICK_S / 2] = row[1]
-    return load
+    """The load over each tick from t[i] of a schedule [(t_s, load_n, ...)], by the
+    simulator's own rule (stepper.h, asked through cplant.schedule_apply)."""
+    return schedule_apply(t, steps)[0]
 
 
 def schedule_writes(steps):
@@ -132,23 +144,18 @@ def schedule_writes(steps):
 
 
 def requested(t, steps):
-    """The manual requests in force over each tick, -1 where the mode is not manual:
-    {request: array of 0, 1 or -1}."""
-    mode = np.full(len(t), -1)
-    req = {k: np.zeros(len(t), dtype=int) for k in OFF}
-    for t0, w in schedule_writes(steps):
-        at = t >= t0 - TICK_S / 2
-        if "mode" in w:
-            mode[at] = w["mode"]
-        for k in OFF:
-            if k in w:
-                req[k][at] = w[k]
-    return {k: np.where(mode == MANUAL, v, -1) for k, v in req.items()}
+    """The manual requests in force over each tick from t[i], -1 where the mode is not
+    manual: {request: array of 0, 1 or -1}. Which rows are due when, and what the
+    registers then hold, the C side says (the firmware's register map after the
+    simulator's writes): the rule lives in the stepper alone."""
+    regs = schedule_apply(t, steps)[1]
+    manual = regs[MODE] == MANUAL
+    return {k: np.where(manual, regs[k], -1) for k in request_commands()}
 
 
 def schedule_run(like, steps, end_s):
     """A closed-loop run of the schedule, starting in the state `like` starts in."""
-    t = np.round(np.arange(0.0, end_s + TICK_S / 2, TICK_S), 2)
+    t = tick_grid(end_s)
     load = schedule_loads(t, steps)
     n0 = max(1, int(np.searchsorted(like.t_s, like.t_s[0] + 0.5)))
     sig = {}
@@ -165,7 +172,7 @@ def overridden(trace, steps):
     req = requested(trace.t_s - trace.t_s[0], steps)
     bad = 0
     for k, want in req.items():
-        drove = trace.commands.get(k.replace("manual_", ""))
+        drove = trace.commands.get(request_commands()[k])
         if drove is None:
             continue
         on = want >= 0
@@ -238,7 +245,7 @@ def write_schedule(path, proposal, columns=None):
     """The best schedule as a `leveler-sim --schedule` file: t_s,load_n and, for a
     manual sequence, the register columns it writes (empty cell = no write)."""
     best = proposal["ranked"][0]
-    order = columns or ["mode"] + list(OFF)
+    order = columns or schedule_columns()
     used = [c for c in order if any(c in row[2] for row in best["steps"] if len(row) > 2)]
     tmp = path + ".tmp"
     with open(tmp, "w") as fh:
@@ -247,7 +254,8 @@ def write_schedule(path, proposal, columns=None):
         fh.write(f"# predicted difference {best.get('difference_noise_units', best['separation_noise_units']):.1f} "
                  f"x the sensor noise, {best['separation_noise_units']:.1f} beyond the knife edge\n")
         if used:
-            fh.write("# mode 2 = manual (the manual_* requests drive the actuators, still supervised), 1 = auto; "
+            fh.write(f"# {MODE} {MANUAL} = manual (the manual_* requests drive the actuators, still supervised), "
+                     f"{AUTO} = auto; "
                      "load_n is weights on a real rig (leveler-schedule-run says when)\n")
         fh.write(",".join(["t_s", "load_n"] + used) + "\n")
         for row in best["steps"]:

@@ -44,7 +44,7 @@ class FeatureRun:
         self.config_override = config
         self.features = features
         end = schedule["end_s"]
-        self.t_s = np.round(np.arange(0.0, end + 1e-9, 0.01), 2)
+        self.t_s = cplant.tick_grid(end)
         self.load_n = cplant.scenario_loads(self.t_s, schedule)
         nan = np.full(len(self.t_s), np.nan)
         self.signals = {s: nan for s in ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")}
