@@ -10,8 +10,8 @@ Candidates run in parallel processes, one simulator per process.
 Pairs (two effects at once, "a+b"): one joint fit of both parameter lists,
 started from the two single fits (and from the first's with the second off),
 polished from both (pipeline.py and pairs.py decide which pairs and whether one is kept).
-Screening fits of every partner of the leader are the same, polished briefly
-from the better start only: they rank the second effect.
+Screening fits of every partner of the leader are the same, polished briefly:
+they rank the second effect; a full fit goes on from the best screened point.
 """
 import os
 import time
@@ -154,19 +154,16 @@ def fit_from(problem, effect, cand, max_nfev=60, polish=4):
         if c < best_cost:
             best_u, best_cost = res.x, c
     return {"params": from_unit(effect, best_u), "unit": [float(x) for x in best_u],
-            "calibration_gap": float(np.sqrt(best_cost / max(len(problem.runs), 1))),
-            # the starts not polished: a longer fit can go on from best_u and from these
-            "starts_left": [[float(x) for x in cand[k]] for k in order[polish:]]}
+            "calibration_gap": float(np.sqrt(best_cost / max(len(problem.runs), 1)))}
 
 
 def pair_starts(first, second, u_first, u_second):
     """Where a pair's joint fit starts: both single fits together, and the first's
-    fit with the second at its nominal values (when those lie in the box)."""
-    starts = [np.concatenate([u_first, u_second])]
-    off = off_point(second)
-    if off is not None:
-        starts.append(np.concatenate([u_first, off]))
-    return np.array(starts)
+    fit with the second at its nominal values, or as near them as the box allows
+    (a leak of 1e-10 m^2, undelayed valves): from there the joint fit can fall
+    back to the first alone."""
+    return np.array([np.concatenate([u_first, u_second]),
+                     np.concatenate([u_first, to_unit(second, second.nominal())])])
 
 
 def residual_samples(problem, effect, params):
@@ -192,7 +189,6 @@ def _run_candidate(name, fit_opts):
     eff = fx.get(name)
     calib, hold = _worker["calib"], _worker["hold"]
     res = fit_effect(calib, eff, **fit_opts)
-    res.pop("starts_left")
     res["holdout_gap"] = hold.gap(name, res["params"])
     res["uncertainty"] = assess(calib, eff, res["unit"])
     res["simulations"] = calib.nsim + hold.nsim
@@ -202,14 +198,14 @@ def _run_candidate(name, fit_opts):
 
 
 PAIR_NFEV = 40   # least_squares evaluations of a pair's joint fit, from each of its two starts
-SCREEN_NFEV = 10  # a screening fit's evaluations, from its better start only
+SCREEN_NFEV = 6   # a screening fit's evaluations, from each start
 
 
 def _run_pair(name, starts, fit_opts, screen=False):
     """Joint fit of a pair "a+b" from its starts; held-out gap, intervals (no
     refits over runs: a pair is judged on its held-out gain), residual samples.
-    A screening fit (screen) polishes only its better start, briefly, and has
-    no intervals: it ranks the partners of the leader, it does not name one."""
+    A screening fit (screen) is brief and has no intervals: it ranks the
+    partners of the leader, it does not name one."""
     t0 = time.perf_counter()
     eff = fx.get(name)
     calib, hold = _worker["calib"], _worker["hold"]
@@ -217,7 +213,7 @@ def _run_pair(name, starts, fit_opts, screen=False):
     # from both starts: the leader's single fit has taken up part of the second
     # effect, and from there the joint fit can stay in that valley (seen on the
     # stand-in plant's leak + lagging offset reading)
-    res = fit_from(calib, eff, np.asarray(starts), nfev, polish=1 if screen else len(starts))
+    res = fit_from(calib, eff, np.asarray(starts), nfev, polish=len(starts))
     res["uncertainty"] = {} if screen else assess(calib, eff, res["unit"], resample=False)
     res["calibration_ss"], res["calibration_n_eff"] = residual_samples(calib, name, res["params"])
     res["holdout_ss"], res["holdout_n_eff"] = residual_samples(hold, name, res["params"])

@@ -55,14 +55,14 @@ def screen_plan(ranking, fits):
 def plan(ranking, screened, results):
     """{"leader+second": starts} for the full fits: the MAX_PAIRS screened pairs with
     the most evidence whose effects may be named, each continued from its screening
-    fit and from the start the screen left; none when the leader leaves less than
+    fit (which polished every start briefly); none when the leader leaves less than
     MIN_GAIN_PTS of the held-out gap to gain."""
     if ranking[0]["shrink_pct"] > 100.0 - MIN_GAIN_PTS:
         return {}
     by = {r["effect"]: r for r in ranking}
     ok = [e for e in screened if all(by[n]["shrink_pct"] > 0.0 for n in e["effects"])]
     best = sorted(ok, key=lambda e: e["evidence"])[:MAX_PAIRS]
-    return {e["effect"]: [results[e["effect"]]["unit"]] + results[e["effect"]]["starts_left"] for e in best}
+    return {e["effect"]: [results[e["effect"]]["unit"]] for e in best}
 
 
 def _log_ratio(n, ss_pair, ss_lead):
