@@ -4,6 +4,9 @@ It implements leveler.diagnose.model.Simulator with crude SI dynamics (one
 pressure, a hysteretic platform, an on-off band controller) and two effects,
 `leak` and `sensor_lag`, so the pipeline's plumbing (phases, fitting,
 ranking, report, CLI) can be tested before and independently of the C plant.
+A third, `area` (its offset only: the spring's effective area scaled), raises
+the steady pressure a load needs much as a pressure offset does: a look-alike
+of `sensor_lag` for the tests of the ranked second effect.
 """
 import numpy as np
 
@@ -19,9 +22,9 @@ class StandIn(Simulator):
     def configs(self):
         return ["toy"]
 
-    def _run(self, t, load, commands, leak, tau_p, p_offset, closed):
+    def _run(self, t, load, commands, leak, tau_p, p_offset, closed, area=AREA):
         n = len(t)
-        y, p2 = 0.3975, PA + load[0] / AREA
+        y, p2 = 0.3975, PA + load[0] / area
         lag = p2
         out = {k: np.empty(n) for k in ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")}
         cmd = {k: np.zeros(n, dtype=np.int32) for k in ("compressor", "spring_valve", "vent_valve", "acc_valve")}
@@ -37,11 +40,11 @@ class StandIn(Simulator):
             cmd["compressor"][i], cmd["spring_valve"][i], cmd["vent_valve"][i] = comp, sol, vent
             for _ in range(2):
                 h = dt / 2
-                f = (p2 - PA) * AREA - load[i]
+                f = (p2 - PA) * area - load[i]
                 band = 400.0
                 v = 0.0 if abs(f) < band else (f - np.sign(f) * band) / 2.0e5
                 q = 5.0e-5 * comp * sol - 1.3e-10 * vent * sol * (p2 - PA) - leak * (p2 - PA)
-                p2 += h * 1.1 * p2 / VOL * (q - AREA * v)
+                p2 += h * 1.1 * p2 / VOL * (q - area * v)
                 y = min(max(y + h * v, 0.3), 0.5)
                 lag += h * (p2 - lag) / tau_p if tau_p > 1e-3 else (p2 - lag)
             if tau_p <= 1e-3:
@@ -57,7 +60,8 @@ class StandIn(Simulator):
         leak = params.get("leak_area_m2", 0.0) * 1e-4 if "leak" in names else 0.0
         tau = params.get("tau_pressure_s", 0.0) if "sensor_lag" in names else 0.0
         off = params.get("p_offset_pa", 0.0) if "sensor_lag" in names else 0.0
-        sig, cmd = self._run(run.t_s, run.load_n, run.commands, leak, tau, off, mode == CLOSED_LOOP)
+        area = AREA * (1.0 + params.get("area_offset_rel", 0.0)) if "area" in names else AREA
+        sig, cmd = self._run(run.t_s, run.load_n, run.commands, leak, tau, off, mode == CLOSED_LOOP, area)
         return Trace(run.t_s, sig, cmd)
 
     def generate(self, config, t_s, load_n, truth_effect, truth_params, seed):

@@ -180,3 +180,23 @@ def test_two_effects_at_once_are_both_named(tmp_path, capsys):
     assert kept[0]["closes_pct_of_leader_gap"] >= 30.0 and kept[0]["delta_bic"] < 0.0
     assert abs(d["shrink_pct"] - kept[0]["shrink_pct"]) < 1.0   # before/after is the pair's (every sample)
     assert "Two effects at once" in (tmp_path / "out" / "report.html").read_text()
+
+
+def test_ranked_second_explains_what_the_leader_leaves(tmp_path, capsys):
+    """Truth: a lagging, offset pressure reading and a weak leak. The stand-in's
+    `area` offset raises the pressure a load needs as the reading's offset does:
+    alone it ranks second, a look-alike of the leader that explains nothing the
+    leader leaves. The ranked second effect must be the leak, the truth's second."""
+    logs = make_logs(str(tmp_path), "sensor_lag+leak",
+                     {"leak_area_m2": 2e-8, "tau_pressure_s": 1.0, "p_offset_pa": 8000.0}, seed=5)
+    rc, err = run_cli(args(logs, tmp_path / "out", "--effects", "leak,sensor_lag,area", "--fast"), capsys)
+    assert rc == 0, err
+    d = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    assert d["effect"] == "sensor_lag"
+    assert d["runner_up"] == "area"                 # the single look-alike of the leader
+    assert d["second"]["effect"] == "leak" and d["ranked_combination"] == ["sensor_lag", "leak"]
+    by = {p["effect"]: p for p in d["pairs"]}
+    # the leak pair closes most of what the leader leaves; the look-alike's pair almost none of it
+    assert by["sensor_lag+leak"]["closes_pct_of_leader_gap"] >= 50.0
+    assert by["sensor_lag+area"]["closes_pct_of_leader_gap"] < 10.0
+    assert "Ranked second" in (tmp_path / "out" / "report.html").read_text()

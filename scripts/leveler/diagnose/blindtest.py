@@ -20,7 +20,8 @@ cases, false effects in `none` cases.
 Pair cases (--pairs per seed): two truth effects at once, each at a random
 strength within its range, the pair rotating over all 21 so that no two cases
 of a run repeat one. Scored "both among the top two": the combination the
-diagnosis kept, else its leader and runner-up.
+diagnosis kept, else its ranked combination (the leader and the effect that
+best explains what the leader leaves).
 
 Targets (docs/diagnosis.md): >= 95 % named right, median shrink >= 85 % when
 right, no effect named in a `none` case; pairs: both among the top two in
@@ -223,8 +224,9 @@ def run_case(sim, top, seed, case, index, extra, force=(None, None), slot=None):
          "effects": d.get("effects", []),
          "pairs": [(x["effect"], round(x["shrink_pct"], 1), x["kept"]) for x in d.get("pairs", [])]}
     r["verdict"] = d["effect"]
-    if slot is not None:        # a pair: both among the top two (the kept pair, else leader and runner-up)
-        r["top_two"] = r["effects"] if len(r["effects"]) == 2 else [x[0] for x in r["ranking"][:2]]
+    r["ranked_combination"] = d.get("ranked_combination") or [x[0] for x in r["ranking"][:2]]
+    if slot is not None:        # a pair: both among the top two (the kept pair, else the ranked combination)
+        r["top_two"] = r["effects"] if len(r["effects"]) == 2 else r["ranked_combination"]
         r["both_top_two"] = set(fx.parts(case)) == set(r["top_two"])
         return r
     if r["lookalikes"]:

@@ -10,6 +10,8 @@ Candidates run in parallel processes, one simulator per process.
 Pairs (two effects at once, "a+b"): one joint fit of both parameter lists,
 started from the two single fits (and from the first's with the second off),
 polished from both (pipeline.py and pairs.py decide which pairs and whether one is kept).
+Screening fits of every partner of the leader are the same, polished briefly:
+they rank the second effect; a full fit goes on from the best screened point.
 """
 import os
 import time
@@ -169,16 +171,15 @@ def fit_from(problem, effect, cand, max_nfev=60, polish=4):
 
 def pair_starts(first, second, u_first, u_second):
     """Where a pair's joint fit starts: both single fits together, and the first's
-    fit with the second at its nominal values (when those lie in the box)."""
-    starts = [np.concatenate([u_first, u_second])]
-    off = off_point(second)
-    if off is not None:
-        starts.append(np.concatenate([u_first, off]))
-    return np.array(starts)
+    fit with the second at its nominal values, or as near them as the box allows
+    (a leak of 1e-10 m^2, undelayed valves): from there the joint fit can fall
+    back to the first alone."""
+    return np.array([np.concatenate([u_first, u_second]),
+                     np.concatenate([u_first, to_unit(second, second.nominal())])])
 
 
 def residual_samples(problem, effect, params):
-    """Sum of squares of the calibration residuals and their effective number of
+    """Sum of squares of the residuals and their effective number of
     independent samples (n shrunk by the lag-1 autocorrelation, as the intervals do)."""
     r = problem.residual_vector(effect, params)
     return float(np.sum(r ** 2)), len(r) / autocorrelation_inflation(r)
@@ -209,22 +210,26 @@ def _run_candidate(name, fit_opts):
 
 
 PAIR_NFEV = 40   # least_squares evaluations of a pair's joint fit, from each of its two starts
+SCREEN_NFEV = 6   # a screening fit's evaluations, from each start
 
 
-def _run_pair(name, starts, fit_opts):
+def _run_pair(name, starts, fit_opts, screen=False):
     """Joint fit of a pair "a+b" from its starts; held-out gap, intervals (no
-    refits over runs: a pair is judged on its held-out gain), residual samples."""
+    refits over runs: a pair is judged on its held-out gain), residual samples.
+    A screening fit (screen) is brief and has no intervals: it ranks the
+    partners of the leader, it does not name one."""
     t0 = time.perf_counter()
     eff = fx.get(name)
     calib, hold = _worker["calib"], _worker["hold"]
-    nfev = min(PAIR_NFEV, fit_opts.get("max_nfev", PAIR_NFEV))
+    nfev = min(SCREEN_NFEV if screen else PAIR_NFEV, fit_opts.get("max_nfev", PAIR_NFEV))
     # from both starts: the leader's single fit has taken up part of the second
     # effect, and from there the joint fit can stay in that valley (seen on the
     # stand-in plant's leak + lagging offset reading)
     res = fit_from(calib, eff, np.asarray(starts), nfev, polish=len(starts))
-    res["holdout_gap"] = hold.gap(name, res["params"])
-    res["uncertainty"] = assess(calib, eff, res["unit"], resample=False)
+    res["uncertainty"] = {} if screen else assess(calib, eff, res["unit"], resample=False)
     res["calibration_ss"], res["calibration_n_eff"] = residual_samples(calib, name, res["params"])
+    res["holdout_ss"], res["holdout_n_eff"] = residual_samples(hold, name, res["params"])
+    res["holdout_gap"] = float(np.sqrt(res["holdout_ss"] / max(len(hold.runs), 1)))
     res["simulations"] = calib.nsim + hold.nsim
     res["seconds"] = time.perf_counter() - t0
     calib.nsim = hold.nsim = 0
@@ -263,10 +268,11 @@ def fit_all(spec, config, calib, holdout, mode="auto", candidates=None, jobs=Non
                     [(_run_candidate, (name, fit_opts)) for name in candidates], progress)
 
 
-def fit_pairs(spec, config, calib, holdout, pairs, mode="auto", jobs=None, progress=None, fit_opts=None):
-    """Joint fits of pairs {"a+b": starts} (pair_starts). Returns {name: result}."""
+def fit_pairs(spec, config, calib, holdout, pairs, mode="auto", jobs=None, progress=None, fit_opts=None,
+              screen=False):
+    """Joint fits of pairs {"a+b": starts} (pair_starts), or screening fits. Returns {name: result}."""
     if not pairs:
         return {}
     jobs = jobs or min(len(pairs), os.cpu_count() or 1, 2)
     return _in_pool(spec, config, calib, holdout, mode, jobs,
-                    [(_run_pair, (name, st, fit_opts or {})) for name, st in pairs.items()], progress)
+                    [(_run_pair, (name, st, fit_opts or {}, screen)) for name, st in pairs.items()], progress)

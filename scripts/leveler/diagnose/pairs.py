@@ -1,76 +1,111 @@
-"""Two effects at once: pairs fitted on top of the best single candidate, and
-the rule that keeps a second effect.
+"""Two effects at once: pairs fitted on top of the best single candidate, the
+rule that keeps a second effect, and the ranked second effect.
 
 After the single candidates are fitted and ranked, the leader is paired with
-each other candidate that is plausible on its own (it shrinks the calibration
-gap), at most MAX_PAIRS of them in ranking order, and each pair is fitted
-jointly from the two single fits (fit.fit_pairs). This is done whether or not
-the leader alone clears the threshold: two effects that partly cancel may
-each look weak alone. It is skipped when the leader leaves less of the
-held-out gap than rule 1 asks a second effect to close.
+every other candidate in a brief screening fit (fit.fit_pairs, screen): a
+second effect is whatever best explains what the leader leaves, and that need
+not be a good single candidate (a single fit that mimics the leader ranks high
+alone and explains nothing the leader leaves). This is done whether or not the
+leader alone clears the threshold: two effects that partly cancel may each
+look weak alone.
 
-A second effect is kept only when it buys more than its extra parameters:
+The ranked second (`second` in diagnosis.json) is the partner whose pair has
+the most evidence over the leader alone, in log-likelihood units over all runs:
+  evidence = n_c ln(SS_pair / SS_leader) + k ln(n_c)    (calibration, BIC)
+           + n_h ln(SS_pair / SS_leader)                (held out, no penalty)
+with k the second's parameter count and n the effective numbers of independent
+samples (autocorrelated residuals count less, as in the intervals). Negative
+is evidence for the pair. Both parts count: when the leader leaves little of the
+held-out gap, that run is mostly sensor noise and the calibration runs carry
+the evidence; a second that only fits the calibration runs loses it held out.
+
+The MAX_PAIRS partners with the most evidence that could be kept (rule 3) get
+a full joint fit, unless the leader leaves less of the held-out gap than rule 1
+asks a second effect to close. A second effect is kept (named, `effects`)
+only when it buys more than its extra parameters:
   1. held out: the pair closes at least REL_GAIN of the held-out gap the
      leader alone leaves (a dominant leader leaves little, and what it leaves
      is partly sensor noise no model removes), at least MIN_GAIN_PTS points of
      the nominal gap, and shrinks it by at least the threshold a single effect
      must clear (sensitivity floor included);
   2. calibration: the Bayesian information criterion on the calibration
-     residuals falls, n ln(SS_pair / SS_leader) + k ln(n) < 0, with k the
-     second's parameter count and n the effective number of independent
-     samples (autocorrelated residuals count less, as in the intervals);
+     residuals falls (the first term of the evidence above is < 0);
   3. neither effect alone makes the held-out gap worse than nominal (no
      candidate that does is ever named).
-Of the pairs that pass, the one with the largest held-out shrink is kept.
+Of the fully fitted pairs that pass, the one with the largest held-out shrink is kept.
 """
 import math
 
 from . import effects as fx
 from . import fit
 
-MAX_PAIRS = 3      # pairs fitted on top of the leader (time: about a single fit each)
+MAX_PAIRS = 2      # full joint fits on top of the leader (time: about a single fit each)
 REL_GAIN = 0.3     # share of the leader's held-out gap a second effect must close
 MIN_GAIN_PTS = 5.0  # and at least this many points of the nominal gap
 
 
-def plan(ranking, fits):
-    """{"leader+second": joint-fit starts} for the plausible seconds of the leader;
-    none when the leader leaves less than MIN_GAIN_PTS of the held-out gap to gain."""
+def screen_plan(ranking, fits):
+    """{"leader+other": joint-fit starts} for every other candidate."""
+    leader = ranking[0]["effect"]
+    return {fx.combine([leader, r["effect"]]): fit.pair_starts(fx.get(leader), fx.get(r["effect"]),
+                                                                fits[leader]["unit"], fits[r["effect"]]["unit"])
+            for r in ranking[1:]}
+
+
+def plan(ranking, screened, results):
+    """{"leader+second": starts} for the full fits: the MAX_PAIRS screened pairs with
+    the most evidence whose effects may be named, each continued from its screening
+    fit (which polished every start briefly); none when the leader leaves less than
+    MIN_GAIN_PTS of the held-out gap to gain."""
     if ranking[0]["shrink_pct"] > 100.0 - MIN_GAIN_PTS:
         return {}
-    leader = ranking[0]["effect"]
-    seconds = [r["effect"] for r in ranking[1:] if r["calibration_shrink_pct"] > 0.0][:MAX_PAIRS]
-    return {fx.combine([leader, s]): fit.pair_starts(fx.get(leader), fx.get(s), fits[leader]["unit"],
-                                                       fits[s]["unit"])
-            for s in seconds}
+    by = {r["effect"]: r for r in ranking}
+    ok = [e for e in screened if all(by[n]["shrink_pct"] > 0.0 for n in e["effects"])]
+    best = sorted(ok, key=lambda e: e["evidence"])[:MAX_PAIRS]
+    return {e["effect"]: [results[e["effect"]]["unit"]] for e in best}
 
 
-def entry(name, res, by_effect, nruns, shrink, nominal_cal_gap, nominal_hold_gap):
+def _log_ratio(n, ss_pair, ss_lead):
+    return n * math.log(ss_pair / ss_lead) if ss_pair > 0 and ss_lead > 0 else math.inf
+
+
+def entry(name, res, by_effect, nruns, shrink, nominal_cal_gap, nominal_hold_gap, screen=False):
     """A fitted pair as diagnosis.json reports it (as a ranking entry, plus the
-    held-out gain over its leader and the information criterion)."""
+    held-out gain over its leader, the information criterion and the evidence)."""
     first, second = fx.parts(name)
     lead = by_effect[first]
-    ss_lead = lead["calibration_gap"] ** 2 * nruns
     n = max(res["calibration_n_eff"], 1.0)
-    k = len(fx.get(second).params)
-    d_bic = (n * math.log(res["calibration_ss"] / ss_lead) + k * math.log(n)
-             if ss_lead > 0 and res["calibration_ss"] > 0 else math.inf)
+    d_bic = _log_ratio(n, res["calibration_ss"], lead["calibration_gap"] ** 2 * nruns[0]) \
+        + len(fx.get(second).params) * math.log(n)
+    d_hold = _log_ratio(max(res["holdout_n_eff"], 1.0), res["holdout_ss"], lead["holdout_gap"] ** 2 * nruns[1])
     out = {
-        "effect": name, "effects": [first, second],
+        "effect": name, "effects": [first, second], "screen": screen,
         "params": {p.name: dict({"value": res["params"][p.name], "lo": p.lo, "hi": p.hi},
-                                **res["uncertainty"][p.name])
+                                **res["uncertainty"].get(p.name, {}))
                    for p in fx.get(name).params},
         "calibration_gap": res["calibration_gap"],
         "calibration_shrink_pct": shrink(nominal_cal_gap, res["calibration_gap"]),
         "holdout_gap": res["holdout_gap"],
         "shrink_pct": shrink(nominal_hold_gap, res["holdout_gap"]),
-        "delta_bic": d_bic, "effective_samples": n,
-        "simulations": res["simulations"], "seconds": res["seconds"],
+        "delta_bic": d_bic, "effective_samples": n, "evidence": d_bic + d_hold,
+        "simulations": res["simulations"], "seconds": res["seconds"], "kept": False,
+        "why_not": ["screening fit only"] if screen else [],
     }
     out["gain_pts"] = out["shrink_pct"] - lead["shrink_pct"]
     out["closes_pct_of_leader_gap"] = 100.0 * (1.0 - res["holdout_gap"] / lead["holdout_gap"]) \
         if lead["holdout_gap"] > 0 else 0.0
     return out
+
+
+def ranked_second(entries, kept):
+    """The second place of the ranked combination: the kept pair's second, else the
+    partner with the most evidence over the leader alone (None without pairs)."""
+    best = kept or min(entries, key=lambda e: e["evidence"], default=None)
+    if best is None:
+        return None
+    return {"effect": best["effects"][1], "pair": best["effect"], "kept": best["kept"],
+            "evidence": best["evidence"], "gain_pts": best["gain_pts"],
+            "closes_pct_of_leader_gap": best["closes_pct_of_leader_gap"]}
 
 
 def judge(entries, by_effect, threshold):

@@ -199,29 +199,44 @@ def lookalike_step(problem, ranking, threshold, named, progress, design_pair=Non
     return out
 
 
-def pair_step(spec, config, calib, holdout, mode, jobs, fit_opts, ranking, fits, threshold, nominal_gaps,
-              progress):
-    """Pairs on top of the leader, fitted jointly and judged (pairs.py). Returns
-    (pair entries ranked by held-out shrink, the kept one or None)."""
-    plan = pairs.plan(ranking, fits)
-    if not plan:
-        return [], None
-    progress(f"      pairs on top of {ranking[0]['effect']}: fitting {len(plan)} jointly")
-
+def _fit_pairs(spec, config, calib, holdout, mode, jobs, fit_opts, plan, ranking, nominal_gaps, progress,
+               screen):
+    """Fits the planned pairs and returns ({name: fit result}, [pair entries])."""
     def on_pair(name, r):
         progress(f"      {name:<31} held-out gap {r['holdout_gap']:.3f} "
                  f"({shrink(nominal_gaps[1], r['holdout_gap']):+.1f}%) in {r['seconds']:.1f} s")
 
-    res = fit.fit_pairs(spec, config, calib, holdout, plan, mode, jobs, on_pair, fit_opts)
+    res = fit.fit_pairs(spec, config, calib, holdout, plan, mode, jobs, on_pair, fit_opts, screen)
     by = {r["effect"]: r for r in ranking}
-    entries = [pairs.entry(n, res[n], by, len(calib), shrink, *nominal_gaps) for n in plan]
-    kept = pairs.judge(entries, by, threshold)
-    entries.sort(key=lambda e: -e["shrink_pct"])
-    for e in entries:
+    return res, [pairs.entry(n, res[n], by, (len(calib), len(holdout)), shrink, *nominal_gaps, screen)
+                 for n in plan]
+
+
+def pair_step(spec, config, calib, holdout, mode, jobs, fit_opts, ranking, fits, threshold, nominal_gaps,
+              progress):
+    """Pairs on top of the leader: a screening fit of each to rank the second
+    effect, full joint fits of the best to judge (pairs.py). Returns
+    (pair entries ranked by evidence, the kept one or None, the ranked second or None)."""
+    screen = pairs.screen_plan(ranking, fits)
+    if not screen:
+        return [], None, None
+    progress(f"      pairs on top of {ranking[0]['effect']}: screening {len(screen)}")
+    res, screened = _fit_pairs(spec, config, calib, holdout, mode, jobs, fit_opts, screen, ranking,
+                               nominal_gaps, progress, True)
+    full = pairs.plan(ranking, screened, res)
+    entries = {e["effect"]: e for e in screened}
+    if full:
+        progress(f"      fitting {len(full)} of them jointly in full")
+        entries.update({e["effect"]: e for e in _fit_pairs(spec, config, calib, holdout, mode, jobs, fit_opts,
+                                                            full, ranking, nominal_gaps, progress, False)[1]})
+    by = {r["effect"]: r for r in ranking}
+    kept = pairs.judge([entries[n] for n in full], by, threshold)
+    out = sorted(entries.values(), key=lambda e: e["evidence"])
+    for e in out:
         progress(f"      {e['effect']:<31} {e['shrink_pct']:+.1f}% ({e['gain_pts']:+.1f} points over the leader, "
-                 f"information criterion {e['delta_bic']:+.1f}): "
+                 f"evidence {e['evidence']:+.1f}, information criterion {e['delta_bic']:+.1f}): "
                  + ("kept" if e["kept"] else "not kept: " + "; ".join(e["why_not"])))
-    return entries, kept
+    return out, kept, pairs.ranked_second(out, kept)
 
 
 def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jobs=None,
@@ -296,7 +311,7 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
     progress(f"      sensitivity floor of the held-out {'figures' if features else 'runs'}: {floor:.1f}% "
              f"(threshold {threshold:.1f}%)")
     named_single = best["shrink_pct"] >= threshold
-    pair_list, kept = ([], None) if features else pair_step(
+    pair_list, kept, second = ([], None, None) if features else pair_step(
         spec, config, calib, holdout, mode, jobs, fit_opts, ranking, fits, threshold,
         (nominal_cal_gap, nominal_hold_gap), progress)
     named = named_single or kept is not None
@@ -327,6 +342,10 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
         # the ranked combination: the leader, and a second effect when a pair is kept (pairs.py)
         "effects": effects,
         "pairs": pair_list,
+        # second place of the ranked combination: what best explains what the leader leaves
+        # (pairs.py; named only when kept), else, without pairs, the runner-up single
+        "second": second or ({"effect": runner["effect"], "pair": None, "kept": False} if runner else None),
+        "ranked_combination": [best["effect"]] + ([(second or runner)["effect"]] if (second or runner) else []),
         "margin_pct": (best["shrink_pct"] - runner["shrink_pct"]) if runner else None,
         "runner_up": runner["effect"] if runner else None,
         # look-alikes: the candidates these logs cannot tell apart (the winner first), with evidence

@@ -125,6 +125,19 @@ def _table(rows, cols):
     return "\n".join(h)
 
 
+def _second_text(result):
+    """The ranked combination's second place, in words."""
+    sec = result.get("second")
+    if not sec or not sec.get("pair"):
+        return ""
+    lead = result["ranking"][0]["effect"]
+    return (f" Ranked second: <code>{html.escape(sec['effect'])}</code>, the effect that best explains what "
+            f"<code>{html.escape(lead)}</code> leaves (pair evidence {sec['evidence']:+.1f} log-likelihood units, "
+            f"{sec['gain_pts']:+.1f} held-out points over the leader"
+            + (")." if sec["kept"] else "; not named: see the table).") +
+            " Pairs marked as screening fits were fitted briefly, to rank; the others in full, to judge.")
+
+
 def _pairs_html(result):
     """Pairs fitted on top of the leader, and whether a second effect is kept."""
     if not result.get("pairs"):
@@ -133,6 +146,7 @@ def _pairs_html(result):
     parts = ["<h2>Two effects at once (pairs on top of the leader, held-out)</h2>",
              "<p>" + (f"Kept: <code>{html.escape(' + '.join(result['effects']))}</code>." if kept else
                       "No second effect is kept.") +
+             _second_text(result) +
              " A second effect is kept when the pair closes at least 30 % of the held-out gap the leader "
              "leaves (and 5 points of the nominal gap), clears the threshold, lowers the information criterion on the calibration "
              "residuals (the fit gain pays for its parameters), and neither effect alone makes the held-out "
@@ -143,6 +157,7 @@ def _pairs_html(result):
         ("share of the leader's gap closed %", lambda r: r["closes_pct_of_leader_gap"]),
         ("calibration shrink %", lambda r: r["calibration_shrink_pct"]),
         ("information criterion change", lambda r: r["delta_bic"]),
+        ("evidence over the leader", lambda r: r["evidence"]),
         ("kept", lambda r: "yes" if r["kept"] else "no: " + "; ".join(r["why_not"])),
         ("parameters: value (95 % interval) [range] flags", lambda r: "; ".join(
             _param_text(k, v) for k, v in r["params"].items()))]))
