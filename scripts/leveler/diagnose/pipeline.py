@@ -306,7 +306,7 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
         floor = sensitivity_floor(hold_problem, nominal_hold_gap)
         threshold = max(THRESHOLD_PCT, floor)
     else:
-        floor = sensitivity_floor(hold_problem, nominal_hold_gap, fit.start_shifts(holdout))
+        floor = sensitivity_floor(hold_problem, nominal_hold_gap, hold_problem.start_shifts)
         threshold = max(THRESHOLD_PCT, floor + FLOOR_MARGIN_PTS)
     progress(f"      sensitivity floor of the held-out {'figures' if features else 'runs'}: {floor:.1f}% "
              f"(threshold {threshold:.1f}%)")
