@@ -8,8 +8,9 @@
 #include <stdbool.h>
 #include <stdint.h>
 #include "leveler/hal.h"
+#include "leveler/version.h" /* generated from the top-level VERSION file */
 
-#define LEVELER_FIRMWARE_VERSION 0x0100u /* major*256 + minor: 1.0 */
+#define LEVELER_FIRMWARE_VERSION LEVELER_VERSION_NUMBER /* major*10000 + minor*100 + patch */
 
 /* Fault codes (registers.json last_fault_code); bit (code - 1) in the fault bit fields. */
 typedef enum {
