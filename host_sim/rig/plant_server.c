@@ -24,6 +24,7 @@
  * --clock realtime advances 10 ms
  * per 10 ms of CLOCK_MONOTONIC. The process ends on SIGINT/SIGTERM, or after
  * --max-seconds of wall time (a guard for tests).
+ * Exit status: 0 done, 1 the server could not start, 2 bad input (an option, the config).
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
@@ -39,6 +40,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "cli.h"
 #include "output_watchdog.h"
 #include "plant.h"
 #include "stepper.h"
@@ -122,46 +124,55 @@ static double mono_s(void)
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
-static int usage(void)
+enum { OPT_CONFIG = 0x100, OPT_ADDRESS, OPT_PORT, OPT_PORT_FILE, OPT_CLOCK, OPT_MAX_SECONDS };
+
+static const cli_option server_options_list[] = {
+    {"config", OPT_CONFIG, "FILE", "the plant, sensors and scenario (the simulator's INI, docs/config-format.md)"},
+    {"address", OPT_ADDRESS, "A", "listen address (default 127.0.0.1)"},
+    {"port", OPT_PORT, "P", "TCP port, 0 = any free one (default 0; see --port-file)"},
+    {"port-file", OPT_PORT_FILE, "F", "write the port it listens on to F (for tests and scripts)"},
+    {"clock", OPT_CLOCK, "lockstep|realtime",
+     "lockstep: the plant advances when the client writes holding register 0\n"
+     "(default); realtime: 10 ms per 10 ms of the monotonic clock"},
+    {"max-seconds", OPT_MAX_SECONDS, "S", "stop after S seconds of wall time (a guard for tests; 0 = never)"},
+    {NULL, 0, NULL, NULL},
+};
+
+static const cli_spec server_cli = {
+    .prog = "leveler-plant-server",
+    .usage = "--config FILE [--address A] [--port P] [--port-file F]\n[--clock lockstep|realtime] [--max-seconds S]",
+    .about = "The plant model served as a Modbus TCP analog-input module for leveler-rig (ends on SIGINT/SIGTERM).",
+    .opts = server_options_list,
+};
+
+static int server_option(void *user, int key, const char *v)
 {
-    fprintf(stderr, "usage: leveler-plant-server --config FILE [--address A] [--port P] [--port-file F]"
-                    " [--clock lockstep|realtime] [--max-seconds S]\n");
-    return 2;
+    server_options *o = user;
+    switch (key) {
+    case OPT_CONFIG: o->config = v; return 0;
+    case OPT_ADDRESS: o->address = v; return 0;
+    case OPT_PORT_FILE: o->port_file = v; return 0;
+    case OPT_PORT: return cli_int(&server_cli, "port", v, 0, 65535, &o->port);
+    case OPT_MAX_SECONDS: return cli_double(&server_cli, "max-seconds", v, 0.0, 1e9, &o->max_seconds);
+    case OPT_CLOCK:
+        if (strcmp(v, "lockstep") && strcmp(v, "realtime"))
+            return cli_bad_value(&server_cli, "clock", v, "one of lockstep, realtime");
+        o->lockstep = !strcmp(v, "lockstep");
+        return 0;
+    }
+    return CLI_EXIT_BAD_INPUT;
 }
 
-/* 0, or the exit status (2) after a message. */
+/* CLI_CONTINUE, or the exit status (0 after --help/--version, 2 after a message). */
 static int parse_args(int argc, char **argv, server_options *o)
 {
     *o = (server_options){.address = "127.0.0.1", .lockstep = 1};
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (i + 1 >= argc)
-            return usage();
-        const char *v = argv[++i];
-        if (!strcmp(a, "--config"))
-            o->config = v;
-        else if (!strcmp(a, "--address"))
-            o->address = v;
-        else if (!strcmp(a, "--port"))
-            o->port = atoi(v);
-        else if (!strcmp(a, "--port-file"))
-            o->port_file = v;
-        else if (!strcmp(a, "--clock")) {
-            if (strcmp(v, "lockstep") && strcmp(v, "realtime")) {
-                fprintf(stderr, "leveler-plant-server: --clock: '%s' is not one of lockstep, realtime\n", v);
-                return 2;
-            }
-            o->lockstep = !strcmp(v, "lockstep");
-        } else if (!strcmp(a, "--max-seconds"))
-            o->max_seconds = atof(v);
-        else
-            return usage();
+    int rc = cli_parse(&server_cli, argc, argv, server_option, o, NULL);
+    if (rc == CLI_CONTINUE && o->config == NULL) {
+        fprintf(stderr, "leveler-plant-server: --config FILE is required (see leveler-plant-server --help)\n");
+        return CLI_EXIT_BAD_INPUT;
     }
-    if (o->config == NULL || o->port < 0 || o->port > 65535) {
-        fprintf(stderr, "leveler-plant-server: --config FILE is required (and --port 0..65535)\n");
-        return 2;
-    }
-    return 0;
+    return rc;
 }
 
 /* The plant at 10 ms: the first tick ran under the [initial] actuators, which
@@ -336,8 +347,9 @@ int main(int argc, char **argv)
     static served_plant sp;
     sp.listen_fd = -1;
     int rc = parse_args(argc, argv, &o);
-    if (rc == 0)
-        rc = start_plant(&sp, o.config);
+    if (rc != CLI_CONTINUE)
+        return rc;
+    rc = start_plant(&sp, o.config);
     if (rc == 0)
         rc = open_server(&sp, &o);
     if (rc == 0)

@@ -3,6 +3,9 @@
  *
  *   leveler-rig --config rig.ini [--check]
  *
+ * Exit status: 0 done (stopped by a signal or [rig] run_seconds), 1 the rig could
+ * not start or the log could not be closed, 2 bad input (an option, the config).
+ *
  * Every 10 ms on absolute deadlines (clock_nanosleep TIMER_ABSTIME on
  * CLOCK_MONOTONIC): scan the Modbus sensor module, leveler_app_tick(), apply
  * the outputs, write a run-log line; the time left before the next deadline
@@ -38,6 +41,7 @@
 
 #include <systemd/sd-daemon.h>
 
+#include "cli.h"
 #include "leveler/app.h"
 #include "leveler/regmap.h"
 #include "leveler/regmap_addr.h"
@@ -156,29 +160,46 @@ static void log_tick(rig *r, const bool out[HAL_OUT_COUNT])
     leveler_app_report_log(st.fault, st.rows_dropped > UINT32_MAX ? UINT32_MAX : (uint32_t)st.rows_dropped);
 }
 
-static void usage(void)
+enum { OPT_CONFIG = 0x100, OPT_CHECK };
+
+static const cli_option rig_options[] = {
+    {"config", OPT_CONFIG, "FILE", "the rig's INI file (boards/linux-rig/rig.ini)"},
+    {"check", OPT_CHECK, NULL, "parse the config, print the result and exit"},
+    {NULL, 0, NULL, NULL},
+};
+
+static const cli_spec rig_cli = {
+    .prog = "leveler-rig",
+    .usage = "--config FILE [--check]",
+    .about = "The unchanged firmware on a Linux computer driving a real rig (SIGINT/SIGTERM: outputs safe, exit 0).",
+    .opts = rig_options,
+};
+
+typedef struct {
+    const char *config_path;
+    bool check_only;
+} rig_args;
+
+static int rig_option(void *user, int key, const char *v)
 {
-    fprintf(stderr, "usage: leveler-rig --config FILE [--check]\n"
-                    "  --check   parse the config, print the result and exit\n");
+    rig_args *a = user;
+    if (key == OPT_CONFIG)
+        a->config_path = v;
+    else
+        a->check_only = true;
+    return 0;
 }
 
-/* 0 = run, 2 = usage error. */
-static int parse_args(int argc, char **argv, const char **config_path, bool *check_only)
+/* CLI_CONTINUE to run, else the exit status (0 after --help/--version, 2 bad usage). */
+static int parse_args(int argc, char **argv, rig_args *a)
 {
-    *config_path = NULL;
-    *check_only = false;
-    for (int i = 1; i < argc; i++) {
-        if (!strcmp(argv[i], "--config") && i + 1 < argc)
-            *config_path = argv[++i];
-        else if (!strcmp(argv[i], "--check"))
-            *check_only = true;
-        else
-            *config_path = NULL, i = argc;
+    *a = (rig_args){0};
+    int rc = cli_parse(&rig_cli, argc, argv, rig_option, a, NULL);
+    if (rc == CLI_CONTINUE && a->config_path == NULL) {
+        fprintf(stderr, "leveler-rig: --config FILE is required (see leveler-rig --help)\n");
+        return CLI_EXIT_BAD_INPUT;
     }
-    if (*config_path != NULL)
-        return 0;
-    usage();
-    return 2;
+    return rc;
 }
 
 static void install_signals(void)
@@ -367,16 +388,18 @@ static int rig_close(rig *r)
 int main(int argc, char **argv)
 {
     static rig r;
-    bool check_only;
-    if (parse_args(argc, argv, &r.config_path, &check_only) != 0)
-        return 2;
+    rig_args args;
+    int prc = parse_args(argc, argv, &args);
+    if (prc != CLI_CONTINUE)
+        return prc;
+    r.config_path = args.config_path;
     char err[512];
     rig_config_defaults(&r.cfg);
     if (rig_config_load(r.config_path, &r.cfg, err, sizeof err) != 0) {
         fprintf(stderr, "leveler-rig: %s\n", err);
         return 2;
     }
-    if (check_only) {
+    if (args.check_only) {
         printf("%s: ok\n", r.config_path);
         return 0;
     }

@@ -31,6 +31,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "cli.h"
 #include "leveler/regmap.h"
 #include "leveler/regmap_addr.h"
 #include "stepper.h"
@@ -50,32 +51,48 @@ typedef struct {
     double warn_s;
 } runner_args;
 
+enum { OPT_SCHEDULE = 0x100, OPT_HOST, OPT_PORT, OPT_UNIT, OPT_WARN_S };
+
+static const cli_option runner_options[] = {
+    {"schedule", OPT_SCHEDULE, "FILE", "the schedule (CSV t_s,load_n[,mode,manual_*]; docs/config-format.md)"},
+    {"host", OPT_HOST, "ADDR", "the rig's supervision address (default 127.0.0.1)"},
+    {"port", OPT_PORT, "N", "its Modbus TCP port (default 502)"},
+    {"unit", OPT_UNIT, "ID", "Modbus unit id 0..247 (default 1)"},
+    {"warn-s", OPT_WARN_S, "S", "tell the operator S seconds before a load change (default 5)"},
+    {NULL, 0, NULL, NULL},
+};
+
+static const cli_spec runner_cli = {
+    .prog = "leveler-schedule-run",
+    .usage = "--schedule FILE --host ADDR --port N [--unit ID] [--warn-s S]",
+    .about = "Plays a schedule file's mode and manual rows on a rig over Modbus TCP, as a SCADA would.",
+    .opts = runner_options,
+    .exit_extra = "130 interrupted (the rig restored)",
+};
+
+static int runner_option(void *user, int key, const char *v)
+{
+    runner_args *a = user;
+    switch (key) {
+    case OPT_SCHEDULE: a->schedule = v; return 0;
+    case OPT_HOST: a->host = v; return 0;
+    case OPT_PORT: return cli_int(&runner_cli, "port", v, 1, 65535, &a->port);
+    case OPT_UNIT: return cli_int(&runner_cli, "unit", v, 0, 247, &a->unit);
+    case OPT_WARN_S: return cli_double(&runner_cli, "warn-s", v, 0.0, 1e6, &a->warn_s);
+    }
+    return CLI_EXIT_BAD_INPUT;
+}
+
+/* CLI_CONTINUE, or the exit status (0 after --help/--version, 2 after a message). */
 static int parse_args(int argc, char **argv, runner_args *a)
 {
     *a = (runner_args){.host = "127.0.0.1", .port = 502, .unit = 1, .warn_s = 5.0};
-    for (int i = 1; i < argc; i++) {
-        const char *o = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        char *end = NULL;
-        if (!v)
-            return -1;
-        if (strcmp(o, "--schedule") == 0)
-            a->schedule = v;
-        else if (strcmp(o, "--host") == 0)
-            a->host = v;
-        else if (strcmp(o, "--port") == 0)
-            a->port = (int)strtol(v, &end, 10);
-        else if (strcmp(o, "--unit") == 0)
-            a->unit = (int)strtol(v, &end, 10);
-        else if (strcmp(o, "--warn-s") == 0)
-            a->warn_s = strtod(v, &end);
-        else
-            return -1;
-        if (end && *end)
-            return -1;
-        i++;
+    int rc = cli_parse(&runner_cli, argc, argv, runner_option, a, NULL);
+    if (rc == CLI_CONTINUE && a->schedule == NULL) {
+        fprintf(stderr, "leveler-schedule-run: --schedule FILE is required (see leveler-schedule-run --help)\n");
+        return CLI_EXIT_BAD_INPUT;
     }
-    return a->schedule && a->port > 0 && a->port < 65536 && a->unit >= 0 && a->unit <= 247 && a->warn_s >= 0 ? 0
-                                                                                                           : -1;
+    return rc;
 }
 
 /* The rig's uptime, s; -1 on a Modbus error. */
@@ -204,11 +221,9 @@ static int play(modbus_t *mb, const sim_load_step *rows, size_t n, double warn_s
 int main(int argc, char **argv)
 {
     runner_args a;
-    if (parse_args(argc, argv, &a) != 0) {
-        fprintf(stderr, "usage: leveler-schedule-run --schedule FILE --host ADDR --port N [--unit ID] "
-                        "[--warn-s S]\n");
-        return 2;
-    }
+    int prc = parse_args(argc, argv, &a);
+    if (prc != CLI_CONTINUE)
+        return prc;
     char err[512];
     sim_load_step *rows = NULL;
     size_t n = 0;

@@ -11,7 +11,8 @@
  * PROCESS_RUNS runs (issue 11: well under 8 ms a run, twice the speed of the
  * thesis's own program on this machine).
  *
- *   leveler-sim-bench CONFIG [LEVELER_SIM]
+ *   leveler-sim-bench [--config FILE] [--sim PATH]   (or CONFIG [LEVELER_SIM])
+ * Exit status: 0 done, 1 a run failed, 2 bad input.
  */
 #define _DEFAULT_SOURCE /* wait4 */
 #include <errno.h>
@@ -24,6 +25,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "cli.h"
 #include "simloop.h"
 
 #define PROCESS_RUNS 40
@@ -130,10 +132,45 @@ static int process_time(const char *sim, const char *config, double *wall_median
     return 0;
 }
 
+enum { OPT_CONFIG = 0x100, OPT_SIM };
+
+static const cli_option sim_bench_options[] = {
+    {"config", OPT_CONFIG, "FILE", "the case (default host_sim/configs/thesis-900lb.ini; or the first operand)"},
+    {"sim", OPT_SIM, "PATH", "leveler-sim to time as a process (or the second operand; default: in process only)"},
+    {NULL, 0, NULL, NULL},
+};
+
+static const cli_spec sim_bench_cli = {
+    .prog = "leveler-sim-bench",
+    .usage = "[--config FILE] [--sim PATH]   (or: leveler-sim-bench CONFIG [LEVELER_SIM])",
+    .about = "Simulator speed with the firmware in the loop: in process, and leveler-sim as a process.",
+    .opts = sim_bench_options,
+    .max_operands = 2,
+};
+
+typedef struct {
+    const char *config, *sim;
+} sim_bench_args;
+
+static int sim_bench_option(void *user, int key, const char *v)
+{
+    sim_bench_args *a = user;
+    *(key == OPT_CONFIG ? &a->config : &a->sim) = v;
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
-    const char *path = argc > 1 ? argv[1] : "host_sim/configs/thesis-900lb.ini";
-    const char *sim = argc > 2 ? argv[2] : NULL;
+    sim_bench_args a = {.config = "host_sim/configs/thesis-900lb.ini"};
+    int first = 0;
+    int prc = cli_parse(&sim_bench_cli, argc, argv, sim_bench_option, &a, &first);
+    if (prc != CLI_CONTINUE)
+        return prc;
+    if (first < argc)
+        a.config = argv[first++];
+    if (first < argc)
+        a.sim = argv[first];
+    const char *path = a.config, *sim = a.sim;
     static plant_config cfg;
     char err[1024];
     if (plant_config_load(path, &cfg, err, sizeof err) != 0) {

@@ -7,7 +7,7 @@
  *
  *   leveler-ctlbench [--out DIR] [--configs DIR] [--short] [--no-plots]
  *
- * Exit status: 0 ok (targets missed are reported, not failed), 2 usage, 1 run failure.
+ * Exit status: 0 done (targets missed are reported, not failed), 1 a run failed, 2 bad input.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
@@ -17,6 +17,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "cli.h"
 #include "ctlbench.h"
 #include "pyrun.h"
 
@@ -219,16 +220,44 @@ static int plot_all(const char *dir, const char *configs, const scored *s, size_
     return rc == 0 ? 0 : -1;
 }
 
-static void usage(FILE *f)
+enum { OPT_OUT = 0x100, OPT_CONFIGS, OPT_SHORT, OPT_NO_PLOTS, OPT_QUIET };
+
+static const cli_option bench_options[] = {
+    {"out", OPT_OUT, "DIR", "logs, one PNG per scenario and scorecard.json (default build/ctlbench)"},
+    {"configs", OPT_CONFIGS, "DIR", "the INI files (default <source>/host_sim/configs)"},
+    {"short", OPT_SHORT, NULL, "the acceptance test's short suite"},
+    {"no-plots", OPT_NO_PLOTS, NULL, "no logs and no PNGs (figures only)"},
+    {"quiet", OPT_QUIET, NULL, "no progress lines"},
+    {NULL, 0, NULL, NULL},
+};
+
+static const cli_spec bench_cli = {
+    .prog = "leveler-ctlbench",
+    .usage = "[--out DIR] [--configs DIR] [--short] [--no-plots] [--quiet]",
+    .about = "The controller scorecard: algorithms 1, 2 and 3 over the scenario suite (targets missed are\n"
+             "reported, not failed).",
+    .opts = bench_options,
+};
+
+typedef struct {
+    const char *out, *configs;
+    bool short_suite, plots, quiet;
+} bench_args;
+
+static int bench_option(void *user, int key, const char *v)
 {
-    fprintf(f, "usage: leveler-ctlbench [--out DIR] [--configs DIR] [--short] [--no-plots]\n"
-               "  --out DIR      logs, one PNG per scenario and scorecard.json (default build/ctlbench)\n"
-               "  --configs DIR  the INI files (default <source>/host_sim/configs)\n"
-               "  --short        the acceptance test's short suite\n"
-               "  --no-plots     no logs and no PNGs (figures only)\n");
+    bench_args *a = user;
+    switch (key) {
+    case OPT_OUT: a->out = v; break;
+    case OPT_CONFIGS: a->configs = v; break;
+    case OPT_SHORT: a->short_suite = true; break;
+    case OPT_NO_PLOTS: a->plots = false; break;
+    case OPT_QUIET: a->quiet = true; break;
+    }
+    return 0;
 }
 
-static int run_all(const char *configs, const char *out, bool plots, scored *s, size_t n)
+static int run_all(const char *configs, const char *out, bool plots, bool quiet, scored *s, size_t n)
 {
     size_t cap = ctlbench_rows_needed(&s[0].sc, 1);
     for (size_t i = 1; i < n; i++)
@@ -241,7 +270,8 @@ static int run_all(const char *configs, const char *out, bool plots, scored *s, 
     char err[1024], log[1200];
     int rc = 0;
     for (size_t i = 0; i < n && rc == 0; i++) {
-        fprintf(stderr, "leveler-ctlbench: [%zu/%zu] %s\n", i + 1, n, s[i].sc.name);
+        if (!quiet)
+            fprintf(stderr, "leveler-ctlbench: [%zu/%zu] %s\n", i + 1, n, s[i].sc.name);
         for (int a = 1; a <= 3 && rc == 0; a++) {
             snprintf(log, sizeof log, "%s/%s-alg%d.csv", out, s[i].sc.name, a);
             if (ctlbench_run(&s[i].sc, a, configs, plots ? log : NULL, rows, cap, &s[i].m[a - 1], err, sizeof err) != 0) {
@@ -256,20 +286,12 @@ static int run_all(const char *configs, const char *out, bool plots, scored *s, 
 
 int main(int argc, char **argv)
 {
-    const char *out = "build/ctlbench", *configs = LEVELER_SOURCE_DIR "/host_sim/configs";
-    bool short_suite = false, plots = true;
-    for (int i = 1; i < argc; i++) {
-        if (strcmp(argv[i], "--short") == 0)
-            short_suite = true;
-        else if (strcmp(argv[i], "--no-plots") == 0)
-            plots = false;
-        else if ((strcmp(argv[i], "--out") == 0 || strcmp(argv[i], "--configs") == 0) && i + 1 < argc)
-            *(strcmp(argv[i], "--out") == 0 ? &out : &configs) = argv[i + 1], i++;
-        else {
-            usage(strcmp(argv[i], "-h") == 0 || strcmp(argv[i], "--help") == 0 ? stdout : stderr);
-            return strcmp(argv[i], "-h") == 0 || strcmp(argv[i], "--help") == 0 ? 0 : 2;
-        }
-    }
+    bench_args a = {.out = "build/ctlbench", .configs = LEVELER_SOURCE_DIR "/host_sim/configs", .plots = true};
+    int prc = cli_parse(&bench_cli, argc, argv, bench_option, &a, NULL);
+    if (prc != CLI_CONTINUE)
+        return prc;
+    const char *out = a.out, *configs = a.configs;
+    bool short_suite = a.short_suite, plots = a.plots;
     if (mkdir(out, 0777) != 0 && errno != EEXIST) {
         fprintf(stderr, "leveler-ctlbench: cannot create %s: %s\n", out, strerror(errno));
         return 2;
@@ -279,7 +301,7 @@ int main(int argc, char **argv)
     size_t n = ctlbench_suite(short_suite, suite, MAX_SCENARIOS);
     for (size_t i = 0; i < n; i++)
         s[i].sc = suite[i];
-    if (run_all(configs, out, plots, s, n) != 0)
+    if (run_all(configs, out, plots, a.quiet, s, n) != 0)
         return 1;
     printf("leveler controller scorecard: algorithms 1 and 2 (the thesis's) and 3 (docs/controller.md),\n"
            "firmware in the loop, product defaults (algorithms 1 and 2 without the chatter fault, as published);\n"

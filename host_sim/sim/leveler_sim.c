@@ -9,7 +9,8 @@
  *   $LEVELER_PYTHON -m leveler.report --log run.csv ... (PYTHONPATH=<source>/scripts)
  * which prints the thesis comparison table. LEVELER_PYTHON and
  * LEVELER_SCRIPTS_DIR in the environment override the built-in paths.
- * Exit status: 0 ok, 2 usage or configuration error, 1 run or report failure.
+ * Options as --opt VALUE or --opt=VALUE (host_sim/cli); --help, --version.
+ * Exit status: 0 done, 1 the run or the report failed, 2 bad input (an option, the config, the schedule).
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
@@ -17,33 +18,45 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "cli.h"
 #include "pyrun.h"
 #include "simloop.h"
 
-static void usage(FILE *f)
-{
-    fprintf(f,
-            "usage: leveler-sim --config FILE [--schedule FILE] [--algorithm 1|2|3] --log run.csv\n"
-            "                   [--summary run.json] [--plot run.png] [--units thesis|si] [--end-s S]\n"
-            "  --config FILE      plant, sensors, controller settings, scenario (docs/config-format.md)\n"
-            "  --schedule FILE    load steps, CSV t_s,load_n (replaces the config's scenario); optional\n"
-            "                     columns mode, manual_compressor, manual_spring_valve, manual_vent_valve,\n"
-            "                     manual_acc_valve are written through the register map at each row\n"
-            "  --algorithm 1|2|3  1 no accumulator, 2 accumulator, 3 hysteresis-aware (docs/controller.md)\n"
-            "                     (default: the config's)\n"
-            "  --log FILE         run log, one row per 10 ms tick (\"-\" = stdout)\n"
-            "  --summary FILE     event figures as JSON (runs python -m leveler.report)\n"
-            "  --plot FILE        figure of the run (runs python -m leveler.report)\n"
-            "  --units thesis|si  units of the printed comparison table (default thesis)\n"
-            "  --end-s S          simulate to S seconds (holds the last load past the schedule)\n"
-            "  --dump-config      print the resolved config (the built-in one without --config)\n"
-            "                     as JSON in SI units and exit (what scripts/leveler/config.py reads)\n");
-}
+enum { OPT_CONFIG = 0x100, OPT_LOG, OPT_SCHEDULE, OPT_ALGORITHM, OPT_SUMMARY, OPT_PLOT, OPT_UNITS, OPT_END_S,
+       OPT_DUMP, OPT_QUIET };
+
+static const cli_option sim_options_list[] = {
+    {"config", OPT_CONFIG, "FILE", "plant, sensors, controller settings, scenario (docs/config-format.md)"},
+    {"schedule", OPT_SCHEDULE, "FILE",
+     "load steps, CSV t_s,load_n (replaces the config's scenario); optional\n"
+     "columns mode, manual_compressor, manual_spring_valve, manual_vent_valve,\n"
+     "manual_acc_valve are written through the register map at each row"},
+    {"algorithm", OPT_ALGORITHM, "1|2|3",
+     "1 no accumulator, 2 accumulator, 3 hysteresis-aware (docs/controller.md)\n(default: the config's)"},
+    {"log", OPT_LOG, "FILE", "run log, one row per 10 ms tick (\"-\" = stdout)"},
+    {"summary", OPT_SUMMARY, "FILE", "event figures as JSON (runs python -m leveler.report)"},
+    {"plot", OPT_PLOT, "FILE", "figure of the run (runs python -m leveler.report)"},
+    {"units", OPT_UNITS, "thesis|si", "units of the printed comparison table (default thesis)"},
+    {"end-s", OPT_END_S, "S", "simulate to S seconds (holds the last load past the schedule)"},
+    {"dump-config", OPT_DUMP, NULL,
+     "print the resolved config (the built-in one without --config)\n"
+     "as JSON in SI units and exit (what scripts/leveler/config.py reads)"},
+    {"quiet", OPT_QUIET, NULL, "no progress lines on long runs"},
+    {NULL, 0, NULL, NULL},
+};
+
+static const cli_spec sim_cli = {
+    .prog = "leveler-sim",
+    .usage = "--config FILE [--schedule FILE] [--algorithm 1|2|3] --log run.csv\n"
+             "[--summary run.json] [--plot run.png] [--units thesis|si] [--end-s S] [--quiet]\n"
+             "--dump-config [--config FILE]",
+    .about = "The unchanged firmware against the plant model: writes the run log (docs/log-format.md).",
+    .opts = sim_options_list,
+};
 
 static void progress(double t_s, double end_s, void *user)
 {
-    (void)user;
-    if (end_s >= 600.0)
+    if (end_s >= 600.0 && !*(const int *)user)
         fprintf(stderr, "leveler-sim: %.0f / %.0f s simulated\n", t_s, end_s);
 }
 
@@ -97,85 +110,54 @@ static int run_report(const char *log, const char *summary, const char *plot, co
 typedef struct {
     const char *config, *schedule, *log, *summary, *plot, *units;
     int algorithm; /* 0 = the config's */
-    int dump;
+    int dump, quiet;
     double end_s;
 } sim_args;
 
-/* One option with its value v. 0, or the exit status (2) after a message. */
-static int parse_option(sim_args *a, const char *opt, const char *v)
+/* One option with its value v: 0, or the exit status (2) after a message. */
+static int parse_option(void *user, int key, const char *v)
 {
-    if (strcmp(opt, "--config") == 0)
-        a->config = v;
-    else if (strcmp(opt, "--schedule") == 0)
-        a->schedule = v;
-    else if (strcmp(opt, "--log") == 0)
-        a->log = v;
-    else if (strcmp(opt, "--summary") == 0)
-        a->summary = v;
-    else if (strcmp(opt, "--plot") == 0)
-        a->plot = v;
-    else if (strcmp(opt, "--units") == 0) {
-        if (strcmp(v, "thesis") != 0 && strcmp(v, "si") != 0) {
-            fprintf(stderr, "leveler-sim: --units must be thesis or si, not '%s'\n", v);
-            return 2;
-        }
+    sim_args *a = user;
+    switch (key) {
+    case OPT_CONFIG: a->config = v; return 0;
+    case OPT_SCHEDULE: a->schedule = v; return 0;
+    case OPT_LOG: a->log = v; return 0;
+    case OPT_SUMMARY: a->summary = v; return 0;
+    case OPT_PLOT: a->plot = v; return 0;
+    case OPT_DUMP: a->dump = 1; return 0;
+    case OPT_QUIET: a->quiet = 1; return 0;
+    case OPT_UNITS:
+        if (strcmp(v, "thesis") != 0 && strcmp(v, "si") != 0)
+            return cli_bad_value(&sim_cli, "units", v, "thesis or si");
         a->units = v;
-    } else if (strcmp(opt, "--algorithm") == 0) {
-        if (strcmp(v, "1") != 0 && strcmp(v, "2") != 0 && strcmp(v, "3") != 0) {
-            fprintf(stderr, "leveler-sim: --algorithm must be 1, 2 or 3, not '%s'\n", v);
-            return 2;
-        }
+        return 0;
+    case OPT_ALGORITHM:
+        if (strcmp(v, "1") != 0 && strcmp(v, "2") != 0 && strcmp(v, "3") != 0)
+            return cli_bad_value(&sim_cli, "algorithm", v, "1, 2 or 3");
         a->algorithm = v[0] - '0';
-    } else if (strcmp(opt, "--end-s") == 0) {
-        char *e;
-        a->end_s = strtod(v, &e);
-        if (*e || !(a->end_s > 0.0 && a->end_s <= 1e7)) {
-            fprintf(stderr, "leveler-sim: --end-s must be a number in (0, 1e7], not '%s'\n", v);
-            return 2;
-        }
-    } else {
-        fprintf(stderr, "leveler-sim: unknown option '%s'\n", opt);
-        usage(stderr);
-        return 2;
+        return 0;
+    case OPT_END_S:
+        return cli_double(&sim_cli, "end-s", v, 1e-9, 1e7, &a->end_s);
     }
-    return 0;
+    return CLI_EXIT_BAD_INPUT;
 }
 
-/* -1 to go on, else the exit status (0 after --help). */
+/* CLI_CONTINUE to go on, else the exit status (0 after --help/--version). */
 static int parse_args(int argc, char **argv, sim_args *a)
 {
     *a = (sim_args){.units = "thesis"};
-    for (int i = 1; i < argc; i++) {
-        const char *opt = argv[i];
-        if (strcmp(opt, "-h") == 0 || strcmp(opt, "--help") == 0) {
-            usage(stdout);
-            return 0;
-        }
-        if (strcmp(opt, "--dump-config") == 0) {
-            a->dump = 1;
-            continue;
-        }
-        if (i + 1 >= argc) {
-            fprintf(stderr, "leveler-sim: %s needs a value\n", opt);
-            usage(stderr);
-            return 2;
-        }
-        int rc = parse_option(a, opt, argv[++i]);
-        if (rc != 0)
-            return rc;
-    }
-    if (a->dump)
-        return -1;
+    int rc = cli_parse(&sim_cli, argc, argv, parse_option, a, NULL);
+    if (rc != CLI_CONTINUE || a->dump)
+        return rc;
     if (!a->config || !a->log) {
-        fprintf(stderr, "leveler-sim: --config and --log are required\n");
-        usage(stderr);
-        return 2;
+        fprintf(stderr, "leveler-sim: --config and --log are required (see leveler-sim --help)\n");
+        return CLI_EXIT_BAD_INPUT;
     }
     if ((a->summary || a->plot) && strcmp(a->log, "-") == 0) {
         fprintf(stderr, "leveler-sim: --summary/--plot need --log to be a file\n");
-        return 2;
+        return CLI_EXIT_BAD_INPUT;
     }
-    return -1;
+    return CLI_CONTINUE;
 }
 
 /* Load, open the log, run, close: the exit status. */
@@ -201,7 +183,7 @@ static int simulate(const sim_args *a)
         return 2;
     }
     sim_options so = {.config = &cfg, .algorithm = a->algorithm, .steps = steps, .step_count = nsteps,
-                      .end_s = a->end_s, .log = rl, .progress = progress};
+                      .end_s = a->end_s, .log = rl, .progress = progress, .progress_user = (void *)&a->quiet};
     static sim_result res;
     int rc = sim_run(&so, &res, err, sizeof err);
     free(steps);
@@ -220,7 +202,7 @@ int main(int argc, char **argv)
 {
     sim_args a;
     int rc = parse_args(argc, argv, &a);
-    if (rc >= 0)
+    if (rc != CLI_CONTINUE)
         return rc;
     if (a.dump)
         return dump_config(a.config);
