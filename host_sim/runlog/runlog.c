@@ -22,6 +22,7 @@
 #include "runlog.h"
 
 #include "decimal.h"
+#include "leveler/version.h" /* in the header: a log names the code that made it */
 
 #include <errno.h>
 #include <fcntl.h>
@@ -196,12 +197,12 @@ runlog *runlog_open(const runlog_options *options, char *err, size_t err_len)
     if (options->buffered && log->path)
         log->buf = malloc(RUNLOG_BUFFER_BYTES);
     int hlen = snprintf(log->header, sizeof log->header,
-                        "# leveler run log, format %d\n# config: %s\n# source: %s\n"
+                        "# leveler run log, format %d\n# config: %s\n# source: %s\n# version: %s\n"
                         "t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,"
                         "compressor,spring_valve,vent_valve,acc_valve\n",
                         RUNLOG_FORMAT_VERSION,
                         options->config_name ? options->config_name : "",
-                        options->source ? options->source : "");
+                        options->source ? options->source : "", LEVELER_VERSION);
     if (log->path == NULL || (options->buffered && log->buf == NULL)) {
         snprintf(err, err_len, "runlog: %s: out of memory", options->path);
         free(log->buf);

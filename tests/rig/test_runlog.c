@@ -21,6 +21,7 @@
 #include <unistd.h>
 
 #include "decimal.h"
+#include "leveler/version.h"
 #include "runlog.h"
 
 #define HEADER_COLUMNS "t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,spring_valve,vent_valve,acc_valve"
@@ -113,7 +114,8 @@ static void writes_header_and_rows_with_empty_cells(void **state)
 
     char *text = slurp(path, NULL);
     assert_non_null(text);
-    assert_string_equal(text, "# leveler run log, format 2\n# config: thesis-900lb\n# source: rig\n" HEADER_COLUMNS "\n"
+    assert_string_equal(text, "# leveler run log, format 2\n# config: thesis-900lb\n# source: rig\n# version: " LEVELER_VERSION
+                              "\n" HEADER_COLUMNS "\n"
                               "1.250000,0.39751,613633.5,613000.25,,4003.4,1,0,0,\n"
                               "1.260000,0.4,,,,4003.4,,,,\n");
     /* Values survive the text round trip to the precision the analysis needs. */
