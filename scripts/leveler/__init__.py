@@ -8,9 +8,30 @@ events   event figures of a load step and a load removal (docs/events.md)
 config   the simulator config as its C loader resolves it (leveler-sim --dump-config)
 plot     the report figure (matplotlib, Agg)
 report   command line: python -m leveler.report --log run.csv ...
+cli      the command style every Python program shares (argparse, --version, exit codes)
 
 Everything inside is SI with absolute pressures; thesis units (in, psia, lb)
 appear only where results are set beside the thesis.
 """
 
-__all__ = ["runlog", "thesis", "events", "config", "plot", "report"]
+import os as _os
+
+
+def _read_version():
+    """The top-level VERSION file of the checkout (the one source; CMake reads
+    it too), else the installed package's metadata."""
+    path = _os.path.join(_os.path.dirname(_os.path.abspath(__file__)), "..", "..", "VERSION")
+    try:
+        with open(path, encoding="utf-8") as fh:
+            return fh.readline().strip()
+    except OSError:
+        from importlib import metadata
+        try:
+            return metadata.version("leveler")
+        except metadata.PackageNotFoundError:
+            return "unknown"
+
+
+__version__ = _read_version()
+
+__all__ = ["runlog", "thesis", "events", "config", "plot", "report", "cli", "__version__"]

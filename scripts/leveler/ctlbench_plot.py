@@ -11,7 +11,6 @@ scorecard is drawn.
 
 from __future__ import annotations
 
-import argparse
 import io
 import json
 import os
@@ -22,6 +21,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from . import cli  # noqa: E402
 from . import config as config_mod  # noqa: E402
 from . import plot as plot_mod  # noqa: E402
 from . import runlog, thesis  # noqa: E402
@@ -73,7 +73,7 @@ def plot_scenario(directory, configs_dir, scenario):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = cli.parser("python -m leveler.ctlbench_plot", __doc__.splitlines()[0])
     ap.add_argument("--dir", required=True, help="the scorecard folder (scorecard.json and the run logs)")
     ap.add_argument("--configs", required=True, help="the folder of the INI files")
     ap.add_argument("scenarios", nargs="*", help="scenario names (default: all)")

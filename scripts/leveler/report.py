@@ -14,12 +14,11 @@ names the file and line.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 
 from . import config as config_mod
-from . import events, runlog, thesis
+from . import __version__, cli, events, runlog, thesis
 
 
 def _fmt(v, unit):
@@ -79,8 +78,7 @@ def format_table(summary, published, case, units="thesis"):
 
 
 def build_parser():
-    p = argparse.ArgumentParser(prog="python -m leveler.report",
-                                description="Event figures of a leveler run log beside the thesis.")
+    p = cli.parser("python -m leveler.report", "Event figures of a leveler run log beside the thesis.")
     p.add_argument("--log", required=True, help="run-log CSV (docs/log-format.md)")
     p.add_argument("--summary", help="write the event figures as JSON here")
     p.add_argument("--plot", help="write the report figure (PNG) here")
@@ -111,7 +109,8 @@ def main(argv=None):
 
     try:
         if args.summary:
-            runlog.write_text_atomic(args.summary, json.dumps(summary, indent=2) + "\n")
+            # the event figures, and the version of the code that computed them
+            runlog.write_text_atomic(args.summary, json.dumps({**summary, "version": __version__}, indent=2) + "\n")
         if args.plot:
             from . import plot  # matplotlib only when asked
             plot.plot_run(log, args.plot, analysis=analysis, cfg=cfg, units=args.units)
@@ -119,7 +118,8 @@ def main(argv=None):
         print(f"leveler.report: error: {e.filename or ''}: {e.strerror}", file=sys.stderr)
         return 2
 
-    print(f"{args.log}: config '{log.config}', source {log.source}, {len(log)} rows, "
+    print(f"{args.log} (leveler {__version__}; log written by {log.meta.get('version', 'a version before 0.6.0')}): "
+          f"config '{log.config}', source {log.source}, {len(log)} rows, "
           f"{log.t_s[0]:.2f}..{log.t_s[-1]:.2f} s; compared with "
           f"{case or 'no published case (name or base load not 900/1000 lb)'}")
     if not analysis.load_events:

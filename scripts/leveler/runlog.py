@@ -30,6 +30,8 @@ from typing import Dict, Optional
 
 import numpy as np
 
+from .cli import umask_mode
+
 FORMAT_VERSION = 2
 
 COLUMNS = ("t_s", "height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa", "load_n",
@@ -348,6 +350,7 @@ def write_text_atomic(path, text, mode="w"):
     folder = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=folder)
     try:
+        os.fchmod(fd, umask_mode(0o666))   # mkstemp makes 0600; the file gets what open() would give
         with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8", "newline": ""})) as f:
             f.write(text)
             f.flush()

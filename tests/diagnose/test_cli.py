@@ -2,6 +2,7 @@
 half-written to --out. And a whole run on the test-only stand-in plant."""
 import json
 import os
+import stat
 
 import numpy as np
 import pytest
@@ -9,6 +10,8 @@ import pytest
 from conftest import thesis_schedule
 from leveler.diagnose import cli, runs
 from standin import StandIn
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 SIM = ["--simulator", "standin:StandIn"]
 
@@ -118,6 +121,21 @@ def test_whole_run_names_the_effect_and_writes_atomically(logs, tmp_path, capsys
     assert [p for p in os.listdir(tmp_path) if p.startswith(".diagnose-")] == []
     html = (out / "report.html").read_text()
     assert "data:image/png;base64," in html and "sensor_lag" in html
+    version = open(os.path.join(ROOT, "VERSION")).read().strip()          # issue 22: traceable to the code
+    assert d["version"] == version and f"leveler {version}" in html
+    assert "<h2>Verdict: <code>sensor_lag</code></h2>" in html and "<td>leak</td>" in html
+
+
+def test_out_folder_and_files_follow_the_umask(logs, tmp_path, capsys):
+    """Issue 22: the diagnosis folder is made as mkdir would (not 0700 whatever the umask)."""
+    old = os.umask(0o022)
+    try:
+        rc, err = run_cli(args(logs, tmp_path / "out", "--effects", "leak", "--fast"), capsys)
+    finally:
+        os.umask(old)
+    assert rc == 0, err
+    assert stat.S_IMODE(os.stat(tmp_path / "out").st_mode) == 0o755
+    assert stat.S_IMODE(os.stat(tmp_path / "out" / "diagnosis.json").st_mode) == 0o644
 
 
 @pytest.mark.parametrize("kind", ["foreign_folder", "file", "under_a_file", "unwritable"])

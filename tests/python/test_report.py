@@ -25,6 +25,7 @@ def test_summary_json_and_table(run_csv, tmp_path, capsys):
     out = tmp_path / "s.json"
     assert report.main(["--log", str(run_csv), "--summary", str(out)]) == 0
     data = json.loads(out.read_text())
+    assert data.pop("version") == open(os.path.join(ROOT, "VERSION")).read().strip()
     assert tuple(data) == events.SUMMARY_KEYS
     assert data["time_stuck_bottom_s"] == pytest.approx(16.0, abs=0.15)
     text = capsys.readouterr().out

@@ -1,19 +1,20 @@
 """bench-diagnose: wall time of one full diagnosis (2 calibration runs, 1 holdout,
 all seven candidates in parallel processes) on blind-test logs. Prints figures;
 the target is under 60 s on a 2-core machine."""
-import argparse
 import os
 import subprocess
 import sys
 import tempfile
 import time
 
+from leveler import cli as leveler_cli
+
 from . import blindtest
 from .model import make_simulator
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="bench-diagnose", description=__doc__)
+    ap = leveler_cli.parser("bench-diagnose", __doc__)
     ap.add_argument("--out", default=None, help="folder for the logs and the diagnosis")
     ap.add_argument("--effect", default="thermal", choices=blindtest.CASES)
     ap.add_argument("--repeat", type=int, default=3)

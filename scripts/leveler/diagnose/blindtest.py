@@ -28,7 +28,6 @@ right, no effect named in a `none` case; pairs: both among the top two in
 >= 80 % (8 of 10).
 """
 import itertools
-import argparse
 import json
 import os
 import subprocess
@@ -38,6 +37,8 @@ import time
 
 import numpy as np
 
+import leveler
+from leveler import cli as leveler_cli
 from leveler import thesis
 
 from . import design
@@ -273,8 +274,7 @@ def summary(results):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="leveler-blindtest", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = leveler_cli.parser("leveler-blindtest", __doc__, "1 also when --check finds a target missed")
     ap.add_argument("--seeds", type=int, default=5, help="seeds per case (default 5)")
     ap.add_argument("--first-seed", type=int, default=1)
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated subset of cases")
@@ -336,7 +336,8 @@ def main(argv=None):
           f"logs and diagnoses in {top}")
     if a.json:
         with open(a.json, "w") as fh:
-            json.dump({"results": results, "pair_results": pair_results, **s}, fh, indent=2)
+            json.dump({"version": leveler.__version__, "results": results, "pair_results": pair_results, **s}, fh,
+                      indent=2)
     if a.check:
         ok = s["hit_pct"] >= a.min_hit and (np.isnan(s["median_shrink_pct"]) or s["median_shrink_pct"] >= a.min_shrink) \
             and not s["false_in_none"] and (not pair_results or s["pairs_hit_pct"] >= a.min_pairs)

@@ -11,13 +11,15 @@ import shutil
 import sys
 import tempfile
 
+import leveler
+from leveler import cli as leveler_cli
+
 from . import effects as fx
 from .errors import DiagnoseInputError
 
 
 def parse_args(argv):
-    ap = argparse.ArgumentParser(prog="leveler-diagnose", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = leveler_cli.parser("leveler-diagnose", __doc__)
     ap.add_argument("--config", required=True, help="plant config name (host_sim/configs/NAME.ini)")
     ap.add_argument("--run", action="append", default=[], metavar="CSV", help="calibration run log")
     ap.add_argument("--holdout", action="append", default=[], metavar="CSV",
@@ -73,7 +75,9 @@ def prepare_out(out):
     parent = os.path.dirname(out)
     try:
         os.makedirs(parent, exist_ok=True)
-        return tempfile.mkdtemp(prefix=".diagnose-", dir=parent)
+        tmp = tempfile.mkdtemp(prefix=".diagnose-", dir=parent)
+        os.chmod(tmp, leveler_cli.umask_mode(0o777))   # becomes --out: the folder open() would make, not 0700
+        return tmp
     except OSError as e:
         raise DiagnoseInputError(f"--out {out}: cannot write there: {e.strerror}")
 
@@ -139,6 +143,7 @@ def diagnose_into(a, say, tmp, out):
                                        a.jobs, say,
                                        {"starts": 8, "max_nfev": 15, "polish": 1} if a.fast else None,
                                        pair)
+    result["version"] = leveler.__version__   # the code that made this diagnosis
     report.write_json(os.path.join(tmp, OUT_FILES[0]), result)
     report.write_html(os.path.join(tmp, OUT_FILES[1]), result, traces)
     if result.get("experiment"):

@@ -1,6 +1,5 @@
-"""DIR/diagnosis.json and DIR/report.html (plots embedded as base64 PNG)."""
+"""DIR/diagnosis.json and DIR/report.html (templates/report.html.j2, Jinja2; plots embedded as base64 PNG)."""
 import base64
-import html
 import io
 import json
 
@@ -9,7 +8,14 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+import jinja2  # noqa: E402
+
+from leveler import __version__  # noqa: E402
 from leveler.thesis import M_PER_IN, PA_PER_PSI  # noqa: E402
+
+_TEMPLATES = jinja2.Environment(loader=jinja2.PackageLoader("leveler.diagnose", "templates"),
+                                autoescape=True, undefined=jinja2.StrictUndefined,
+                                trim_blocks=True, lstrip_blocks=True)
 
 
 def _json_default(o):
@@ -29,31 +35,21 @@ def _param_text(name, v):
     return f"{name}={v['value']:.3g}{iv} [{v['lo']:.3g}, {v['hi']:.3g}]" + (f" {', '.join(flags)}" if flags else "")
 
 
-def _lookalike_html(result):
-    """Look-alikes with their cross-fit evidence, and the proposed experiment."""
-    parts = []
-    group = result.get("cannot_tell_apart") or []
-    if group:
-        parts.append(f"<p><b>Cannot be told apart from these logs:</b> {html.escape(', '.join(group))}. "
-                     "Each, refitted on the runs the other would make, explains them as well as it "
-                     "explains the real runs.</p>")
-    if result.get("separability"):
-        parts.append(_table(result["separability"], [
+def _lookalikes(result):
+    """Look-alikes with their cross-fit evidence, and the proposed experiment (template data)."""
+    sep = result.get("separability")
+    exp = result.get("experiment")
+    return {
+        "group": result.get("cannot_tell_apart") or [],
+        "separability": _table(sep, [
             ("A / B", lambda r: " / ".join(r["effects"])),
             ("B refitted on A's runs: gap", lambda r: r["b_on_a_gap"]), ("A's own gap", lambda r: r["a_own_gap"]),
             ("A refitted on B's runs: gap", lambda r: r["a_on_b_gap"]), ("B's own gap", lambda r: r["b_own_gap"]),
-            ("told apart", lambda r: "no" if r["cannot_tell_apart"] else "yes")]))
-    exp = result.get("experiment")
-    if exp:
-        parts.append(f"<h3>Proposed experiment: {html.escape(' vs '.join(exp['between']))} "
-                     "(experiment.csv, a <code>leveler-sim --schedule</code> file)</h3>")
-        parts.append(_table(exp["ranked"], [
+            ("told apart", lambda r: "no" if r["cannot_tell_apart"] else "yes")]) if sep else None,
+        "experiment": {"between": exp["between"], "unsafe": exp.get("unsafe") or [], "table": _table(exp["ranked"], [
             ("schedule", lambda r: r["schedule"]), ("kind", lambda r: r.get("kind", "load")),
-            ("predicted difference / sensor noise", lambda r: r["separation_noise_units"])]))
-        if exp.get("unsafe"):
-            parts.append("<p>Left out (the supervisor would override them): "
-                         f"{html.escape(', '.join(exp['unsafe']))}</p>")
-    return parts
+            ("predicted difference / sensor noise", lambda r: r["separation_noise_units"])])} if exp else None,
+    }
 
 
 def write_json(path, result):
@@ -114,122 +110,92 @@ def _loop_plot(run, nom, aug, effect):
 
 
 def _table(rows, cols):
-    h = ["<table><tr>" + "".join(f"<th>{html.escape(c)}</th>" for c, _ in cols) + "</tr>"]
-    for r in rows:
-        cells = []
-        for _, f in cols:
-            v = f(r)
-            cells.append(f"<td>{html.escape(v if isinstance(v, str) else f'{v:.3g}')}</td>")
-        h.append("<tr>" + "".join(cells) + "</tr>")
-    h.append("</table>")
-    return "\n".join(h)
+    """A table for the template's table macro: the column titles and each row's
+    cells as text (numbers to 3 significant digits)."""
+    return {"head": [c for c, _ in cols],
+            "rows": [[v if isinstance(v, str) else f"{v:.3g}" for v in (f(r) for _, f in cols)] for r in rows]}
 
 
-def _second_text(result):
-    """The ranked combination's second place, in words."""
+def _second(result):
+    """The ranked combination's second place (template data), or None."""
     sec = result.get("second")
     if not sec or not sec.get("pair"):
-        return ""
-    lead = result["ranking"][0]["effect"]
-    return (f" Ranked second: <code>{html.escape(sec['effect'])}</code>, the effect that best explains what "
-            f"<code>{html.escape(lead)}</code> leaves (pair evidence {sec['evidence']:+.1f} log-likelihood units, "
-            f"{sec['gain_pts']:+.1f} held-out points over the leader"
-            + (")." if sec["kept"] else "; not named: see the table).") +
-            " Pairs marked as screening fits were fitted briefly, to rank; the others in full, to judge.")
+        return None
+    return {"effect": sec["effect"], "lead": result["ranking"][0]["effect"], "evidence": sec["evidence"],
+            "gain_pts": sec["gain_pts"], "kept": sec["kept"]}
 
 
-def _pairs_html(result):
-    """Pairs fitted on top of the leader, and whether a second effect is kept."""
+def _pairs(result):
+    """Pairs fitted on top of the leader, and whether a second effect is kept (template data), or None."""
     if not result.get("pairs"):
-        return []
-    kept = len(result.get("effects") or []) > 1
-    parts = ["<h2>Two effects at once (pairs on top of the leader, held-out)</h2>",
-             "<p>" + (f"Kept: <code>{html.escape(' + '.join(result['effects']))}</code>." if kept else
-                      "No second effect is kept.") +
-             _second_text(result) +
-             " A second effect is kept when the pair closes at least 30 % of the held-out gap the leader "
-             "leaves (and 5 points of the nominal gap), clears the threshold, lowers the information criterion on the calibration "
-             "residuals (the fit gain pays for its parameters), and neither effect alone makes the held-out "
-             "gap worse than nominal.</p>"]
-    parts.append(_table(result["pairs"], [
-        ("pair", lambda r: " + ".join(r["effects"])), ("held-out shrink %", lambda r: r["shrink_pct"]),
-        ("gain over the leader, points", lambda r: r["gain_pts"]),
-        ("share of the leader's gap closed %", lambda r: r["closes_pct_of_leader_gap"]),
-        ("calibration shrink %", lambda r: r["calibration_shrink_pct"]),
-        ("information criterion change", lambda r: r["delta_bic"]),
-        ("evidence over the leader", lambda r: r["evidence"]),
-        ("kept", lambda r: "yes" if r["kept"] else "no: " + "; ".join(r["why_not"])),
-        ("parameters: value (95 % interval) [range] flags", lambda r: "; ".join(
-            _param_text(k, v) for k, v in r["params"].items()))]))
-    return parts
+        return None
+    return {"kept": len(result.get("effects") or []) > 1, "effects": result.get("effects") or [],
+            "second": _second(result), "table": _table(result["pairs"], [
+                ("pair", lambda r: " + ".join(r["effects"])), ("held-out shrink %", lambda r: r["shrink_pct"]),
+                ("gain over the leader, points", lambda r: r["gain_pts"]),
+                ("share of the leader's gap closed %", lambda r: r["closes_pct_of_leader_gap"]),
+                ("calibration shrink %", lambda r: r["calibration_shrink_pct"]),
+                ("information criterion change", lambda r: r["delta_bic"]),
+                ("evidence over the leader", lambda r: r["evidence"]),
+                ("kept", lambda r: "yes" if r["kept"] else "no: " + "; ".join(r["why_not"])),
+                ("parameters: value (95 % interval) [range] flags", lambda r: "; ".join(
+                    _param_text(k, v) for k, v in r["params"].items()))])}
 
 
-def write_html(path, result, traces):
-    eff = " + ".join(result.get("effects") or []) or result["effect"]
-    parts = [
-        "<!doctype html><html><head><meta charset='utf-8'><title>leveler diagnosis</title>",
-        "<style>body{font-family:sans-serif;max-width:1000px;margin:auto}"
-        "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;padding:2px 6px;"
-        "font-size:90%}th{background:#eee}</style></head><body>",
-        f"<h1>Sim-to-real diagnosis: {html.escape(result['config'])}</h1>",
-        f"<p>Calibration runs: {html.escape(', '.join(result['calibration_runs']))}. "
-        f"Held-out runs: {html.escape(', '.join(result['holdout_runs']))}.</p>",
-        f"<h2>Verdict: <code>{html.escape(eff)}</code></h2>",
-    ]
-    if eff != "none":
-        parts.append(f"<p>Held-out gap shrinks by {result['shrink_pct']:.1f}% "
-                     f"(margin over {html.escape(str(result['runner_up']))}: {result['margin_pct']:.1f} points; "
-                     f"threshold {result['threshold_pct']:.0f}%).</p>")
-    else:
-        parts.append(f"<p>No candidate shrinks the held-out gap by {result['threshold_pct']:.0f}% or more.</p>")
-    parts += _lookalike_html(result)
-    parts += _pairs_html(result)
-    gb, ga = result["gap_before"], result["gap_after"]
-    parts.append(_table([{"k": k, "b": gb[k], "a": ga.get(k, float('nan'))} for k in gb],
-                        [("held-out gap", lambda r: r["k"]), ("nominal", lambda r: r["b"]),
-                         ("augmented", lambda r: r["a"])]))
-    parts.append("<h2>Ranking of candidate effects (held-out)</h2>")
-    parts.append(_table(result["ranking"], [
-        ("rank", lambda r: str(r["rank"])), ("effect", lambda r: r["effect"]),
-        ("held-out shrink %", lambda r: r["shrink_pct"]),
-        ("calibration shrink %", lambda r: r["calibration_shrink_pct"]),
-        ("held-out gap", lambda r: r["holdout_gap"]),
-        ("signature match", lambda r: r.get("signature_match", float("nan"))),
-        ("parameters: value (95 % interval) [range] flags", lambda r: "; ".join(
-            _param_text(k, v) for k, v in r["params"].items()))]))
-    parts.append("<h2>Where the gap lies (nominal model, all runs)</h2>")
+def _where_tables(result):
+    """The gap's location: published figures (feature runs), else phase/signal rows."""
     ranked = result["where"]["ranked"]
     if ranked and "figure" in ranked[0]:
         num = lambda v: "-" if v is None else v
-        parts.append(_table(ranked, [
+        return [_table(ranked, [
             ("rank", lambda r: str(r["rank"])), ("run", lambda r: r["run"]), ("figure", lambda r: r["figure"]),
             ("phase", lambda r: r["phase"]), ("published (SI)", lambda r: num(r["published"])),
             ("nominal (SI)", lambda r: num(r["simulated"])),
-            ("difference / resolution", lambda r: num(r["normalised"]))]))
-        ranked = []
-    parts.append(_table(ranked[:16], [
+            ("difference / resolution", lambda r: num(r["normalised"]))])]
+    return [_table(ranked[:16], [
         ("rank", lambda r: str(r["rank"])), ("phase", lambda r: r["phase"]), ("signal", lambda r: r["signal"]),
         ("bias", lambda r: r["bias"]), ("RMS", lambda r: r["rms"]), ("unit", lambda r: r["unit"]),
-        ("share %", lambda r: r["share_pct"])]))
-    parts.append("<h2>Per phase, held-out (normalised gap)</h2>")
-    parts.append(_table([{"p": p, **v} for p, v in result["per_phase"].items()], [
-        ("phase", lambda r: r["p"]), ("nominal", lambda r: r["before"]["normalised"]),
-        ("augmented", lambda r: r["after"]["normalised"]), ("shrink %", lambda r: r["shrink_pct"])]))
-    for ev in result["events"]:
-        if not ev["real"]:
-            continue
-        parts.append(f"<h3>Event figures: {html.escape(ev['run'])}</h3>")
-        parts.append(_table([{"k": k} for k in ev["real"]], [
-            ("figure", lambda r: r["k"]), ("real", lambda r: ev["real"][r["k"]]),
-            ("nominal", lambda r: ev["nominal"].get(r["k"]) or float("nan")),
-            ("augmented", lambda r: ev["augmented"].get(r["k"]) or float("nan"))]))
-    if traces:
-        parts.append("<h2>Traces (held-out)</h2>")
-        for run, nom, aug in zip(traces["holdout"], traces["nominal"], traces["augmented"]):
-            if not hasattr(run, "signals"):
-                continue
-            parts.append(f"<img src='data:image/png;base64,{_trace_plot(run, nom, aug, eff)}'>")
-            parts.append(f"<img src='data:image/png;base64,{_loop_plot(run, nom, aug, eff)}'>")
-    parts.append("</body></html>")
-    with open(path, "w") as fh:
-        fh.write("\n".join(parts))
+        ("share %", lambda r: r["share_pct"])])]
+
+
+def _event_tables(result):
+    return [{"run": ev["run"], "table": _table([{"k": k} for k in ev["real"]], [
+        ("figure", lambda r: r["k"]), ("real", lambda r: ev["real"][r["k"]]),
+        ("nominal", lambda r: ev["nominal"].get(r["k"]) or float("nan")),
+        ("augmented", lambda r: ev["augmented"].get(r["k"]) or float("nan"))])}
+        for ev in result["events"] if ev["real"]]
+
+
+def _trace_images(traces, eff):
+    if not traces:
+        return []
+    return [img for run, nom, aug in zip(traces["holdout"], traces["nominal"], traces["augmented"])
+            if hasattr(run, "signals")
+            for img in (_trace_plot(run, nom, aug, eff), _loop_plot(run, nom, aug, eff))]
+
+
+def write_html(path, result, traces):
+    """report.html from templates/report.html.j2 (Jinja2, autoescaped)."""
+    eff = " + ".join(result.get("effects") or []) or result["effect"]
+    gb, ga = result["gap_before"], result["gap_after"]
+    page = _TEMPLATES.get_template("report.html.j2").render(
+        r=result, eff=eff, version=result.get("version") or __version__,
+        lookalikes=_lookalikes(result), pairs=_pairs(result),
+        gap=_table([{"k": k, "b": gb[k], "a": ga.get(k, float("nan"))} for k in gb],
+                   [("held-out gap", lambda r: r["k"]), ("nominal", lambda r: r["b"]),
+                    ("augmented", lambda r: r["a"])]),
+        ranking=_table(result["ranking"], [
+            ("rank", lambda r: str(r["rank"])), ("effect", lambda r: r["effect"]),
+            ("held-out shrink %", lambda r: r["shrink_pct"]),
+            ("calibration shrink %", lambda r: r["calibration_shrink_pct"]),
+            ("held-out gap", lambda r: r["holdout_gap"]),
+            ("signature match", lambda r: r.get("signature_match", float("nan"))),
+            ("parameters: value (95 % interval) [range] flags", lambda r: "; ".join(
+                _param_text(k, v) for k, v in r["params"].items()))]),
+        where=_where_tables(result),
+        per_phase=_table([{"p": p, **v} for p, v in result["per_phase"].items()], [
+            ("phase", lambda r: r["p"]), ("nominal", lambda r: r["before"]["normalised"]),
+            ("augmented", lambda r: r["after"]["normalised"]), ("shrink %", lambda r: r["shrink_pct"])]),
+        events=_event_tables(result), images=_trace_images(traces, eff))
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(page)
