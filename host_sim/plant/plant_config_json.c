@@ -1,9 +1,12 @@
-/* The resolved config as JSON (plant.h: plant_config_write_json), from the loader's tables. */
+/* The resolved config as JSON (plant.h: plant_config_write_json), from the loader's tables, built with cJSON. */
 #include "plant.h"
 #include "config_table.h"
 
+#include <cjson/cJSON.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* The SI suffix of a unit kind: its entry with factor 1, not gauge; "" for plain numbers. */
@@ -15,50 +18,50 @@ static const char *si_suffix(kind k)
     return "";
 }
 
-static void json_string(FILE *f, const char *s)
+/* A number that reads back bit for bit (%.17g; cJSON's own printer keeps 15
+ * digits and can lose the last bit, which the Python side would see). */
+static cJSON *exact_number(double x)
 {
-    fputc('"', f);
-    for (; *s; s++) {
-        unsigned char ch = (unsigned char)*s;
-        if (ch == '"' || ch == '\\')
-            fprintf(f, "\\%c", ch);
-        else if (ch < 0x20)
-            fprintf(f, "\\u%04x", ch);
-        else
-            fputc(ch, f);
-    }
-    fputc('"', f);
+    char text[32];
+    if (!isfinite(x))
+        return cJSON_CreateNull();
+    snprintf(text, sizeof text, "%.17g", x);
+    return cJSON_CreateRaw(text);
 }
 
-static void json_field(FILE *f, const field *fd, const char *base, const char *sep)
+static void add_number(cJSON *obj, const char *key, double x)
+{
+    cJSON_AddItemToObject(obj, key, exact_number(x));
+}
+
+/* "<base>_<SI suffix>": the field's value, in SI. */
+static void json_field(cJSON *obj, const field *fd, const char *base)
 {
     const char *suffix = si_suffix(fd->k);
-    fprintf(f, "%s\"%s%s%s\": ", sep, fd->base, suffix[0] ? "_" : "", suffix);
+    char key[128];
+    snprintf(key, sizeof key, "%s%s%s", fd->base, suffix[0] ? "_" : "", suffix);
     const char *v = base + fd->offset;
-    if (fd->t == T_DOUBLE)
-        fprintf(f, "%.17g", *(const double *)v);
-    else if (fd->t == T_INT)
-        fprintf(f, "%d", *(const int *)v);
-    else
-        fprintf(f, "%u", (unsigned)*(const uint32_t *)v);
+    double x = fd->t == T_DOUBLE ? *(const double *)v
+               : fd->t == T_INT  ? (double)*(const int *)v
+                                 : (double)*(const uint32_t *)v;
+    add_number(obj, key, x);
 }
 
-static void json_list(FILE *f, const char *key, const double *v, int n)
+static void json_list(cJSON *obj, const char *key, const double *v, int n)
 {
-    fprintf(f, ", \"%s\": [", key);
+    cJSON *list = cJSON_AddArrayToObject(obj, key);
     for (int i = 0; i < n; i++)
-        fprintf(f, "%s%.17g", i ? ", " : "", v[i]);
-    fputc(']', f);
+        cJSON_AddItemToArray(list, exact_number(v[i]));
 }
 
 /* The hysteresis bands with the load range plant_band_for_load() gives each
  * (covers_below_n null: every heavier load). */
-static void json_bands(FILE *f, const plant_params *p)
+static cJSON *json_bands(const plant_params *p)
 {
-    fprintf(f, "  \"hysteresis\": [");
+    cJSON *list = cJSON_CreateArray();
     for (int b = 0; b < p->band_count; b++) {
         const plant_hysteresis_band *band = &p->bands[b];
-        double from = 0.0, below = band->load_below_n;
+        double from = 0.0;
         int last = 1;
         for (int o = 0; o < p->band_count; o++) {
             double other = p->bands[o].load_below_n;
@@ -67,56 +70,64 @@ static void json_bands(FILE *f, const plant_params *p)
             if (other > band->load_below_n)
                 last = 0;
         }
-        fprintf(f, "%s\n    {", b ? "," : "");
-        int n = 0;
+        cJSON *item = cJSON_CreateObject();
         for (size_t i = 0; i < config_field_count; i++)
             if (strcmp(fields[i].section, "hysteresis") == 0)
-                json_field(f, &fields[i], (const char *)band, n++ ? ", " : "");
-        fprintf(f, ", \"covers_from_n\": %.17g, \"covers_below_n\": ", from);
+                json_field(item, &fields[i], (const char *)band);
+        add_number(item, "covers_from_n", from);
         if (last)
-            fprintf(f, "null}");
+            cJSON_AddNullToObject(item, "covers_below_n");
         else
-            fprintf(f, "%.17g}", below);
+            add_number(item, "covers_below_n", band->load_below_n);
+        cJSON_AddItemToArray(list, item);
     }
-    fprintf(f, "\n  ]");
+    return list;
 }
 
-int plant_config_write_json(const plant_config *c, FILE *f)
+/* The keys read by hand (not in the field table), after their section's fields. */
+static void json_extras(cJSON *sec, const char *section, const plant_params *p)
 {
     static const char *const acc_types[] = {"none", "tube", "diaphragm"};
-    const plant_params *p = &c->plant;
-    fprintf(f, "{\n  \"config\": {\"name\": ");
-    json_string(f, c->name);
-    fprintf(f, ", \"path\": ");
-    json_string(f, c->path);
-    fprintf(f, "},\n");
-    const char *open = NULL;
+    if (strcmp(section, "accumulator") == 0) {
+        cJSON_AddStringToObject(sec, "type", acc_types[p->acc_type]);
+        json_list(sec, "diaphragm_breaks_pa", p->diaphragm_break_pa, p->diaphragm_segments - 1);
+        json_list(sec, "diaphragm_slopes_m3_per_pa", p->diaphragm_slope_m3_per_pa, p->diaphragm_segments);
+        json_list(sec, "diaphragm_intercepts_m3", p->diaphragm_intercept_m3, p->diaphragm_segments);
+    }
+    if (strcmp(section, "spring") == 0) {
+        json_list(sec, "area_cc1_poly_in2", p->area_cc1_in2, p->area_cc1_terms);
+        json_list(sec, "area_cc2_poly_in2_per_in", p->area_cc2_in2_per_in, p->area_cc2_terms);
+    }
+}
+
+static cJSON *config_json(const plant_config *c)
+{
+    cJSON *root = cJSON_CreateObject();
+    cJSON *head = cJSON_AddObjectToObject(root, "config");
+    cJSON_AddStringToObject(head, "name", c->name);
+    cJSON_AddStringToObject(head, "path", c->path);
+    cJSON *sec = NULL;
     for (size_t i = 0; i < config_field_count; i++) {
         const field *fd = &fields[i];
         if (strcmp(fd->section, "hysteresis") == 0)
             continue;
-        int first = !open || strcmp(open, fd->section) != 0;
-        if (first) {
-            if (open)
-                fprintf(f, "},\n");
-            fprintf(f, "  \"%s\": {", fd->section);
-            open = fd->section;
-        }
-        json_field(f, fd, (const char *)c, first ? "" : ", ");
-        int last = i + 1 == config_field_count || strcmp(fields[i + 1].section, fd->section) != 0;
-        if (last && strcmp(fd->section, "accumulator") == 0) { /* the keys read by hand */
-            fprintf(f, ", \"type\": \"%s\"", acc_types[p->acc_type]);
-            json_list(f, "diaphragm_breaks_pa", p->diaphragm_break_pa, p->diaphragm_segments - 1);
-            json_list(f, "diaphragm_slopes_m3_per_pa", p->diaphragm_slope_m3_per_pa, p->diaphragm_segments);
-            json_list(f, "diaphragm_intercepts_m3", p->diaphragm_intercept_m3, p->diaphragm_segments);
-        }
-        if (last && strcmp(fd->section, "spring") == 0) {
-            json_list(f, "area_cc1_poly_in2", p->area_cc1_in2, p->area_cc1_terms);
-            json_list(f, "area_cc2_poly_in2_per_in", p->area_cc2_in2_per_in, p->area_cc2_terms);
-        }
+        sec = cJSON_GetObjectItemCaseSensitive(root, fd->section);
+        if (sec == NULL)
+            sec = cJSON_AddObjectToObject(root, fd->section);
+        json_field(sec, fd, (const char *)c);
+        if (i + 1 == config_field_count || strcmp(fields[i + 1].section, fd->section) != 0)
+            json_extras(sec, fd->section, &c->plant);
     }
-    fprintf(f, "},\n");
-    json_bands(f, p);
-    fprintf(f, "\n}\n");
-    return ferror(f) ? -1 : 0;
+    cJSON_AddItemToObject(root, "hysteresis", json_bands(&c->plant));
+    return root;
+}
+
+int plant_config_write_json(const plant_config *c, FILE *f)
+{
+    cJSON *root = config_json(c);
+    char *text = root ? cJSON_Print(root) : NULL;
+    int rc = text && fprintf(f, "%s\n", text) >= 0 && !ferror(f) ? 0 : -1;
+    free(text);
+    cJSON_Delete(root);
+    return rc;
 }
