@@ -113,7 +113,7 @@ static int flush_buffer(runlog *log)
 /* O_APPEND: after a torn line is cut off, the next write lands at the new end. */
 static int open_fresh(runlog *log)
 {
-    log->fd = open(log->path, O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
+    log->fd = open(log->path, O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0666);
     if (log->fd < 0)
         return -1;
     log->file_bytes = 0;
@@ -144,7 +144,7 @@ static int rotate(runlog *log, const char *line, size_t len)
     if (tmp == NULL || from == NULL || to == NULL)
         goto out;
     snprintf(tmp, cap, "%s.tmp", log->path);
-    fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0644);
+    fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0666);
     if (fd < 0 || write_all(fd, log->header, log->header_len) != 0 || write_all(fd, line, len) != 0)
         goto out;
     if (log->keep_files > 0) {
