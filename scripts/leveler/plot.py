@@ -16,6 +16,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from . import __version__  # noqa: E402
 from . import config as config_mod  # noqa: E402
 from . import events as events_mod  # noqa: E402
 from . import runlog, thesis  # noqa: E402
@@ -182,6 +183,9 @@ def plot_run(log, out_png, analysis=None, cfg=None, units="thesis", title=None):
     ax_ph.legend(loc="upper right", fontsize=8)
     ax_ph.set_title("P2 against height, hysteresis lines of each load", fontsize=10, loc="left")
 
+    # which code drew it, and which wrote the log (docs/log-format.md "# version:")
+    fig.text(0.995, 0.002, f"leveler {__version__}; log by {log.meta.get('version', 'a version before 0.6.0')}",
+             ha="right", va="bottom", fontsize=7, color="0.4")
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     plt.close(fig)

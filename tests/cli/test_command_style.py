@@ -34,7 +34,7 @@ PROGRAMS = {
     "leveler-ctlbench": (lambda: c_program("leveler-ctlbench"), ["--out", "--quiet"]),
     "leveler-sim-bench": (lambda: c_program("leveler-sim-bench"), ["--config"]),
     "leveler-diagnose": (lambda: [str(ROOT / "scripts" / "leveler-diagnose")], ["--config", "--out", "--quiet"]),
-    "leveler-blindtest": (lambda: [str(ROOT / "scripts" / "leveler-blindtest")], ["--log", "--json"]),
+    "leveler-blindtest": (lambda: [str(ROOT / "scripts" / "leveler-blindtest")], ["--out", "--log-kind", "--json"]),
     "python -m leveler.report": (lambda: [PY, "-m", "leveler.report"], ["--config", "--log"]),
 }
 

@@ -279,9 +279,12 @@ def main(argv=None):
     ap.add_argument("--first-seed", type=int, default=1)
     ap.add_argument("--cases", default=",".join(CASES), help="comma-separated subset of cases")
     ap.add_argument("--system", choices=sorted(SYSTEMS), help="only this system (default: rotate)")
-    ap.add_argument("--log", choices=sorted(LOG_KINDS), help="only this log kind (default: rotate)")
+    # --log names a run-log file elsewhere (one name per thing): the kind is --log-kind, --log kept for old scripts
+    ap.add_argument("--log-kind", "--log", dest="log", choices=sorted(LOG_KINDS),
+                    help="only this log kind (default: rotate)")
     ap.add_argument("--fast", action="store_true", help="smaller fitting budget (the CTest variant)")
-    ap.add_argument("--keep", metavar="DIR", help="keep logs, sealed labels and diagnoses here")
+    ap.add_argument("--out", "--keep", dest="keep", metavar="DIR",
+                    help="keep logs, sealed labels and diagnoses here (default: a temporary folder)")
     ap.add_argument("--json", metavar="FILE", help="write all results here")
     ap.add_argument("--check", action="store_true", help="exit 1 when a target is missed")
     ap.add_argument("--min-hit", type=float, default=95.0, help="--check: least %% named right")
