@@ -17,8 +17,11 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include <cjson/cJSON.h>
+
 #include "cli.h"
 #include "ctlbench.h"
+#include "leveler/version.h"
 #include "pyrun.h"
 
 #ifndef LEVELER_SOURCE_DIR
@@ -154,48 +157,93 @@ static unsigned print_targets(const scored *s, size_t n)
     return missed;
 }
 
-static void json_metrics(FILE *f, const ctlbench_metrics *m)
+/* A figure to its printed resolution (decimals), null when not defined. */
+static void add_fixed(cJSON *o, const char *key, double v, int decimals)
 {
-    fprintf(f, "{\"algorithm\": %d, \"return_median_s\": %.3f, \"return_worst_s\": %.3f, \"unsettled_steps\": %u, "
-               "\"overshoot_in\": %.4f, \"switchings_per_step\": %.3f, \"switchings\": %u, ",
-            m->algorithm, m->return_median_s, m->return_worst_s, m->unsettled_steps, m->overshoot_max_m * IN_PER_M,
-            m->switchings_per_step, m->switchings);
-    if (!isnan(m->rest_switchings_per_min))
-        fprintf(f, "\"rest_switchings\": %u, \"rest_switchings_per_min\": %.3f, \"rest_outside_s\": %.2f, ",
-                m->rest_switchings, m->rest_switchings_per_min, m->rest_outside_s);
-    fprintf(f, "\"compressor_on_s\": %.2f, \"vented_kg\": %.5f, \"outside_s\": %.2f, \"latched_faults\": %u, \"steps\": [",
-            m->compressor_on_s, m->vented_kg, m->outside_s, m->latched_faults);
-    for (size_t k = 0; k < m->step_count; k++)
-        fprintf(f, "%s{\"t_s\": %.2f, \"load_change_lbf\": %.0f, \"first_entry_s\": %.3f, \"return_s\": %.3f, "
-                   "\"settled\": %s, \"overshoot_in\": %.4f, \"switchings\": %u}",
-                k ? ", " : "", m->step[k].t_s, m->step[k].load_change_n / PLANT_N_PER_LBF, m->step[k].first_entry_s,
-                m->step[k].return_s, m->step[k].settled ? "true" : "false", m->step[k].overshoot_m * IN_PER_M,
-                m->step[k].switchings);
-    fprintf(f, "]}");
+    char text[64];
+    if (!isfinite(v)) {
+        cJSON_AddNullToObject(o, key);
+        return;
+    }
+    snprintf(text, sizeof text, "%.*f", decimals, v);
+    cJSON_AddRawToObject(o, key, text);
 }
 
+static cJSON *json_step(const ctlbench_step *st)
+{
+    cJSON *o = cJSON_CreateObject();
+    add_fixed(o, "t_s", st->t_s, 2);
+    add_fixed(o, "load_change_lbf", st->load_change_n / PLANT_N_PER_LBF, 0);
+    add_fixed(o, "first_entry_s", st->first_entry_s, 3);
+    add_fixed(o, "return_s", st->return_s, 3);
+    cJSON_AddBoolToObject(o, "settled", st->settled);
+    add_fixed(o, "overshoot_in", st->overshoot_m * IN_PER_M, 4);
+    cJSON_AddNumberToObject(o, "switchings", st->switchings);
+    return o;
+}
+
+static cJSON *json_metrics(const ctlbench_metrics *m)
+{
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddNumberToObject(o, "algorithm", m->algorithm);
+    add_fixed(o, "return_median_s", m->return_median_s, 3);
+    add_fixed(o, "return_worst_s", m->return_worst_s, 3);
+    cJSON_AddNumberToObject(o, "unsettled_steps", m->unsettled_steps);
+    add_fixed(o, "overshoot_in", m->overshoot_max_m * IN_PER_M, 4);
+    add_fixed(o, "switchings_per_step", m->switchings_per_step, 3);
+    cJSON_AddNumberToObject(o, "switchings", m->switchings);
+    if (!isnan(m->rest_switchings_per_min)) {
+        cJSON_AddNumberToObject(o, "rest_switchings", m->rest_switchings);
+        add_fixed(o, "rest_switchings_per_min", m->rest_switchings_per_min, 3);
+        add_fixed(o, "rest_outside_s", m->rest_outside_s, 2);
+    }
+    add_fixed(o, "compressor_on_s", m->compressor_on_s, 2);
+    add_fixed(o, "vented_kg", m->vented_kg, 5);
+    add_fixed(o, "outside_s", m->outside_s, 2);
+    cJSON_AddNumberToObject(o, "latched_faults", m->latched_faults);
+    cJSON *steps = cJSON_AddArrayToObject(o, "steps");
+    for (size_t k = 0; k < m->step_count; k++)
+        cJSON_AddItemToArray(steps, json_step(&m->step[k]));
+    return o;
+}
+
+static cJSON *json_scorecard(const scored *s, size_t n)
+{
+    cJSON *root = cJSON_CreateObject();
+    cJSON_AddStringToObject(root, "version", LEVELER_VERSION);
+    cJSON *list = cJSON_AddArrayToObject(root, "scenarios");
+    for (size_t i = 0; i < n; i++) {
+        cJSON *sc = cJSON_CreateObject();
+        cJSON_AddStringToObject(sc, "name", s[i].sc.name);
+        cJSON_AddStringToObject(sc, "config", s[i].sc.config);
+        cJSON_AddNumberToObject(sc, "noise_counts", s[i].sc.noise_counts);
+        add_fixed(sc, "end_s", s[i].sc.end_s, 0);
+        cJSON *runs = cJSON_AddArrayToObject(sc, "runs");
+        for (int a = 0; a < 3; a++)
+            cJSON_AddItemToArray(runs, json_metrics(&s[i].m[a]));
+        cJSON_AddItemToArray(list, sc);
+    }
+    return root;
+}
+
+/* scorecard.json, written whole then renamed. */
 static int write_json(const char *dir, const scored *s, size_t n)
 {
     char path[1200], tmp[1220];
     snprintf(path, sizeof path, "%s/scorecard.json", dir);
     snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    FILE *f = fopen(tmp, "w");
+    cJSON *root = json_scorecard(s, n);
+    char *text = root ? cJSON_Print(root) : NULL;
+    cJSON_Delete(root);
+    FILE *f = text ? fopen(tmp, "w") : NULL;
     if (!f) {
-        fprintf(stderr, "leveler-ctlbench: %s: %s\n", tmp, strerror(errno));
+        fprintf(stderr, "leveler-ctlbench: %s: %s\n", tmp, text ? strerror(errno) : "out of memory");
+        free(text);
         return -1;
     }
-    fprintf(f, "{\"scenarios\": [\n");
-    for (size_t i = 0; i < n; i++) {
-        fprintf(f, "%s {\"name\": \"%s\", \"config\": \"%s\", \"noise_counts\": %g, \"end_s\": %.0f, \"runs\": [",
-                i ? ",\n" : "", s[i].sc.name, s[i].sc.config, s[i].sc.noise_counts, s[i].sc.end_s);
-        for (int a = 0; a < 3; a++) {
-            fputs(a ? ", " : "", f);
-            json_metrics(f, &s[i].m[a]);
-        }
-        fprintf(f, "]}");
-    }
-    fprintf(f, "\n]}\n");
-    if (fclose(f) != 0 || rename(tmp, path) != 0) {
+    int wrote = fprintf(f, "%s\n", text) >= 0;
+    free(text);
+    if (fclose(f) != 0 || !wrote || rename(tmp, path) != 0) {
         fprintf(stderr, "leveler-ctlbench: writing %s failed: %s\n", path, strerror(errno));
         return -1;
     }
