@@ -129,8 +129,30 @@ static int bad_usage(const cli_spec *spec, const char *what, const char *arg)
     return CLI_EXIT_BAD_INPUT;
 }
 
+/* The first required option not given: exit 2 with its name, else CLI_CONTINUE. */
+static int check_required(const cli_spec *spec, const unsigned char *seen)
+{
+    int i = 0;
+    for (const cli_option *o = spec->opts; o && o->name && i < CLI_MAX_OPTIONS; o++, i++)
+        if (o->required && !seen[i]) {
+            fprintf(stderr, "%s: --%s%s%s is required (see %s --help)\n", spec->prog, o->name, o->arg ? " " : "",
+                    o->arg ? o->arg : "", spec->prog);
+            return CLI_EXIT_BAD_INPUT;
+        }
+    return CLI_CONTINUE;
+}
+
+static void mark_seen(const cli_spec *spec, int key, unsigned char *seen)
+{
+    int i = 0;
+    for (const cli_option *o = spec->opts; o && o->name && i < CLI_MAX_OPTIONS; o++, i++)
+        if (o->key == key)
+            seen[i] = 1;
+}
+
 int cli_parse(const cli_spec *spec, int argc, char **argv, cli_handler on_option, void *user, int *operands)
 {
+    unsigned char seen[CLI_MAX_OPTIONS] = {0};
     struct option lo[CLI_MAX_OPTIONS];
     char shorts[2 * CLI_MAX_OPTIONS + 4];
     build_table(spec, lo, shorts);
@@ -156,10 +178,11 @@ int cli_parse(const cli_spec *spec, int argc, char **argv, cli_handler on_option
         int rc = on_option(user, key, optarg);
         if (rc != 0)
             return rc;
+        mark_seen(spec, key, seen);
     }
     if (argc - optind > spec->max_operands)
         return bad_usage(spec, "unexpected argument", argv[optind]);
     if (operands)
         *operands = optind;
-    return CLI_CONTINUE;
+    return check_required(spec, seen);
 }

@@ -127,15 +127,15 @@ static double mono_s(void)
 enum { OPT_CONFIG = 0x100, OPT_ADDRESS, OPT_PORT, OPT_PORT_FILE, OPT_CLOCK, OPT_MAX_SECONDS };
 
 static const cli_option server_options_list[] = {
-    {"config", OPT_CONFIG, "FILE", "the plant, sensors and scenario (the simulator's INI, docs/config-format.md)"},
-    {"address", OPT_ADDRESS, "A", "listen address (default 127.0.0.1)"},
-    {"port", OPT_PORT, "P", "TCP port, 0 = any free one (default 0; see --port-file)"},
-    {"port-file", OPT_PORT_FILE, "F", "write the port it listens on to F (for tests and scripts)"},
+    {"config", OPT_CONFIG, "FILE", "the plant, sensors and scenario (the simulator's INI, docs/config-format.md)", 1},
+    {"address", OPT_ADDRESS, "A", "listen address (default 127.0.0.1)", 0},
+    {"port", OPT_PORT, "P", "TCP port, 0 = any free one (default 0; see --port-file)", 0},
+    {"port-file", OPT_PORT_FILE, "F", "write the port it listens on to F (for tests and scripts)", 0},
     {"clock", OPT_CLOCK, "lockstep|realtime",
      "lockstep: the plant advances when the client writes holding register 0\n"
-     "(default); realtime: 10 ms per 10 ms of the monotonic clock"},
-    {"max-seconds", OPT_MAX_SECONDS, "S", "stop after S seconds of wall time (a guard for tests; 0 = never)"},
-    {NULL, 0, NULL, NULL},
+     "(default); realtime: 10 ms per 10 ms of the monotonic clock", 0},
+    {"max-seconds", OPT_MAX_SECONDS, "S", "stop after S seconds of wall time (a guard for tests; 0 = never)", 0},
+    {NULL, 0, NULL, NULL, 0},
 };
 
 static const cli_spec server_cli = {
@@ -167,12 +167,7 @@ static int server_option(void *user, int key, const char *v)
 static int parse_args(int argc, char **argv, server_options *o)
 {
     *o = (server_options){.address = "127.0.0.1", .lockstep = 1};
-    int rc = cli_parse(&server_cli, argc, argv, server_option, o, NULL);
-    if (rc == CLI_CONTINUE && o->config == NULL) {
-        fprintf(stderr, "leveler-plant-server: --config FILE is required (see leveler-plant-server --help)\n");
-        return CLI_EXIT_BAD_INPUT;
-    }
-    return rc;
+    return cli_parse(&server_cli, argc, argv, server_option, o, NULL);
 }
 
 /* The plant at 10 ms: the first tick ran under the [initial] actuators, which

@@ -163,9 +163,9 @@ static void log_tick(rig *r, const bool out[HAL_OUT_COUNT])
 enum { OPT_CONFIG = 0x100, OPT_CHECK };
 
 static const cli_option rig_options[] = {
-    {"config", OPT_CONFIG, "FILE", "the rig's INI file (boards/linux-rig/rig.ini)"},
-    {"check", OPT_CHECK, NULL, "parse the config, print the result and exit"},
-    {NULL, 0, NULL, NULL},
+    {"config", OPT_CONFIG, "FILE", "the rig's INI file (boards/linux-rig/rig.ini)", 1},
+    {"check", OPT_CHECK, NULL, "parse the config, print the result and exit", 0},
+    {NULL, 0, NULL, NULL, 0},
 };
 
 static const cli_spec rig_cli = {
@@ -194,12 +194,7 @@ static int rig_option(void *user, int key, const char *v)
 static int parse_args(int argc, char **argv, rig_args *a)
 {
     *a = (rig_args){0};
-    int rc = cli_parse(&rig_cli, argc, argv, rig_option, a, NULL);
-    if (rc == CLI_CONTINUE && a->config_path == NULL) {
-        fprintf(stderr, "leveler-rig: --config FILE is required (see leveler-rig --help)\n");
-        return CLI_EXIT_BAD_INPUT;
-    }
-    return rc;
+    return cli_parse(&rig_cli, argc, argv, rig_option, a, NULL);
 }
 
 static void install_signals(void)

@@ -54,12 +54,12 @@ typedef struct {
 enum { OPT_SCHEDULE = 0x100, OPT_HOST, OPT_PORT, OPT_UNIT, OPT_WARN_S };
 
 static const cli_option runner_options[] = {
-    {"schedule", OPT_SCHEDULE, "FILE", "the schedule (CSV t_s,load_n[,mode,manual_*]; docs/config-format.md)"},
-    {"host", OPT_HOST, "ADDR", "the rig's supervision address (default 127.0.0.1)"},
-    {"port", OPT_PORT, "N", "its Modbus TCP port (default 502)"},
-    {"unit", OPT_UNIT, "ID", "Modbus unit id 0..247 (default 1)"},
-    {"warn-s", OPT_WARN_S, "S", "tell the operator S seconds before a load change (default 5)"},
-    {NULL, 0, NULL, NULL},
+    {"schedule", OPT_SCHEDULE, "FILE", "the schedule (CSV t_s,load_n[,mode,manual_*]; docs/config-format.md)", 1},
+    {"host", OPT_HOST, "ADDR", "the rig's supervision address (default 127.0.0.1)", 0},
+    {"port", OPT_PORT, "N", "its Modbus TCP port (default 502)", 0},
+    {"unit", OPT_UNIT, "ID", "Modbus unit id 0..247 (default 1)", 0},
+    {"warn-s", OPT_WARN_S, "S", "tell the operator S seconds before a load change (default 5)", 0},
+    {NULL, 0, NULL, NULL, 0},
 };
 
 static const cli_spec runner_cli = {
@@ -87,12 +87,7 @@ static int runner_option(void *user, int key, const char *v)
 static int parse_args(int argc, char **argv, runner_args *a)
 {
     *a = (runner_args){.host = "127.0.0.1", .port = 502, .unit = 1, .warn_s = 5.0};
-    int rc = cli_parse(&runner_cli, argc, argv, runner_option, a, NULL);
-    if (rc == CLI_CONTINUE && a->schedule == NULL) {
-        fprintf(stderr, "leveler-schedule-run: --schedule FILE is required (see leveler-schedule-run --help)\n");
-        return CLI_EXIT_BAD_INPUT;
-    }
-    return rc;
+    return cli_parse(&runner_cli, argc, argv, runner_option, a, NULL);
 }
 
 /* The rig's uptime, s; -1 on a Modbus error. */

@@ -135,9 +135,9 @@ static int process_time(const char *sim, const char *config, double *wall_median
 enum { OPT_CONFIG = 0x100, OPT_SIM };
 
 static const cli_option sim_bench_options[] = {
-    {"config", OPT_CONFIG, "FILE", "the case (default host_sim/configs/thesis-900lb.ini; or the first operand)"},
-    {"sim", OPT_SIM, "PATH", "leveler-sim to time as a process (or the second operand; default: in process only)"},
-    {NULL, 0, NULL, NULL},
+    {"config", OPT_CONFIG, "FILE", "the case (default host_sim/configs/thesis-900lb.ini; or the first operand)", 0},
+    {"sim", OPT_SIM, "PATH", "leveler-sim to time as a process (or the second operand; default: in process only)", 0},
+    {NULL, 0, NULL, NULL, 0},
 };
 
 static const cli_spec sim_bench_cli = {

@@ -271,12 +271,12 @@ static int plot_all(const char *dir, const char *configs, const scored *s, size_
 enum { OPT_OUT = 0x100, OPT_CONFIGS, OPT_SHORT, OPT_NO_PLOTS, OPT_QUIET };
 
 static const cli_option bench_options[] = {
-    {"out", OPT_OUT, "DIR", "logs, one PNG per scenario and scorecard.json (default build/ctlbench)"},
-    {"configs", OPT_CONFIGS, "DIR", "the INI files (default <source>/host_sim/configs)"},
-    {"short", OPT_SHORT, NULL, "the acceptance test's short suite"},
-    {"no-plots", OPT_NO_PLOTS, NULL, "no logs and no PNGs (figures only)"},
-    {"quiet", OPT_QUIET, NULL, "no progress lines"},
-    {NULL, 0, NULL, NULL},
+    {"out", OPT_OUT, "DIR", "logs, one PNG per scenario and scorecard.json (default build/ctlbench)", 0},
+    {"configs", OPT_CONFIGS, "DIR", "the INI files (default <source>/host_sim/configs)", 0},
+    {"short", OPT_SHORT, NULL, "the acceptance test's short suite", 0},
+    {"no-plots", OPT_NO_PLOTS, NULL, "no logs and no PNGs (figures only)", 0},
+    {"quiet", OPT_QUIET, NULL, "no progress lines", 0},
+    {NULL, 0, NULL, NULL, 0},
 };
 
 static const cli_spec bench_cli = {

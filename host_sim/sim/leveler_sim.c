@@ -26,23 +26,23 @@ enum { OPT_CONFIG = 0x100, OPT_LOG, OPT_SCHEDULE, OPT_ALGORITHM, OPT_SUMMARY, OP
        OPT_DUMP, OPT_QUIET };
 
 static const cli_option sim_options_list[] = {
-    {"config", OPT_CONFIG, "FILE", "plant, sensors, controller settings, scenario (docs/config-format.md)"},
+    {"config", OPT_CONFIG, "FILE", "plant, sensors, controller settings, scenario (docs/config-format.md)", 0},
     {"schedule", OPT_SCHEDULE, "FILE",
      "load steps, CSV t_s,load_n (replaces the config's scenario); optional\n"
      "columns mode, manual_compressor, manual_spring_valve, manual_vent_valve,\n"
-     "manual_acc_valve are written through the register map at each row"},
+     "manual_acc_valve are written through the register map at each row", 0},
     {"algorithm", OPT_ALGORITHM, "1|2|3",
-     "1 no accumulator, 2 accumulator, 3 hysteresis-aware (docs/controller.md)\n(default: the config's)"},
-    {"log", OPT_LOG, "FILE", "run log, one row per 10 ms tick (\"-\" = stdout)"},
-    {"summary", OPT_SUMMARY, "FILE", "event figures as JSON (runs python -m leveler.report)"},
-    {"plot", OPT_PLOT, "FILE", "figure of the run (runs python -m leveler.report)"},
-    {"units", OPT_UNITS, "thesis|si", "units of the printed comparison table (default thesis)"},
-    {"end-s", OPT_END_S, "S", "simulate to S seconds (holds the last load past the schedule)"},
+     "1 no accumulator, 2 accumulator, 3 hysteresis-aware (docs/controller.md)\n(default: the config's)", 0},
+    {"log", OPT_LOG, "FILE", "run log, one row per 10 ms tick (\"-\" = stdout)", 0},
+    {"summary", OPT_SUMMARY, "FILE", "event figures as JSON (runs python -m leveler.report)", 0},
+    {"plot", OPT_PLOT, "FILE", "figure of the run (runs python -m leveler.report)", 0},
+    {"units", OPT_UNITS, "thesis|si", "units of the printed comparison table (default thesis)", 0},
+    {"end-s", OPT_END_S, "S", "simulate to S seconds (holds the last load past the schedule)", 0},
     {"dump-config", OPT_DUMP, NULL,
      "print the resolved config (the built-in one without --config)\n"
-     "as JSON in SI units and exit (what scripts/leveler/config.py reads)"},
-    {"quiet", OPT_QUIET, NULL, "no progress lines on long runs"},
-    {NULL, 0, NULL, NULL},
+     "as JSON in SI units and exit (what scripts/leveler/config.py reads)", 0},
+    {"quiet", OPT_QUIET, NULL, "no progress lines on long runs", 0},
+    {NULL, 0, NULL, NULL, 0},
 };
 
 static const cli_spec sim_cli = {

@@ -26,6 +26,7 @@ typedef struct {
     int key;          /* handed to the callback; a letter gives the short option -<letter> too */
     const char *arg;  /* the value's name in the help (FILE, S, 1|2|3), NULL = a flag */
     const char *help; /* one line; "\n" continues it on the next line, indented */
+    int required;     /* 1: cli_parse() refuses to go on without it */
 } cli_option;
 
 typedef struct {
