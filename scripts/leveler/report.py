@@ -109,8 +109,7 @@ def main(argv=None):
 
     try:
         if args.summary:
-            # the event figures, and the version of the code that computed them
-            runlog.write_text_atomic(args.summary, json.dumps({**summary, "version": __version__}, indent=2) + "\n")
+            runlog.write_text_atomic(args.summary, json.dumps(summary, indent=2) + "\n")
         if args.plot:
             from . import plot  # matplotlib only when asked
             plot.plot_run(log, args.plot, analysis=analysis, cfg=cfg, units=args.units)
