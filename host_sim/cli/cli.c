@@ -44,10 +44,17 @@ static void help_line(FILE *f, int key, const char *name, const char *arg, const
 
 void cli_help(const cli_spec *spec, FILE *f)
 {
+    /* usage lines: "\n" continues the form, "\n|" starts another form of the command */
     const char *u = spec->usage;
     fprintf(f, "usage: %s ", spec->prog);
-    for (const char *nl; (nl = strchr(u, '\n')) != NULL; u = nl + 1)
-        fprintf(f, "%.*s\n%*s", (int)(nl - u), u, (int)strlen(spec->prog) + 8, "");
+    for (const char *nl; (nl = strchr(u, '\n')) != NULL; u = nl + 1) {
+        fprintf(f, "%.*s\n", (int)(nl - u), u);
+        if (nl[1] == '|') {
+            fprintf(f, "       %s ", spec->prog);
+            nl++;
+        } else
+            fprintf(f, "%*s", (int)strlen(spec->prog) + 8, "");
+    }
     fprintf(f, "%s\n       %s --help | --version\n", u, spec->prog);
     if (spec->about)
         fprintf(f, "%s\n", spec->about);

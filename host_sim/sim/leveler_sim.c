@@ -49,7 +49,7 @@ static const cli_spec sim_cli = {
     .prog = "leveler-sim",
     .usage = "--config FILE [--schedule FILE] [--algorithm 1|2|3] --log run.csv\n"
              "[--summary run.json] [--plot run.png] [--units thesis|si] [--end-s S] [--quiet]\n"
-             "--dump-config [--config FILE]",
+             "|--dump-config [--config FILE]",
     .about = "The unchanged firmware against the plant model: writes the run log (docs/log-format.md).",
     .opts = sim_options_list,
 };

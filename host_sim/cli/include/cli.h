@@ -31,7 +31,7 @@ typedef struct {
 
 typedef struct {
     const char *prog;       /* leveler-sim */
-    const char *usage;      /* after the program name on the usage line(s); "\n" starts another */
+    const char *usage;      /* after the program name; "\n" continues on the next line, "\n|" starts another form */
     const char *about;      /* one sentence under the usage line */
     const cli_option *opts; /* --help and --version are added */
     const char *exit_extra; /* extra exit-code lines (e.g. "130 interrupted"), or NULL */
