@@ -15,13 +15,32 @@ EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT = 0, 1, 2
 EXIT_CODES = "exit codes: 0 done, 1 the job failed, 2 bad input (an option, a config, a file)"
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse laid out as the C programs' help (host_sim/cli): the usage line,
+    the options (--help and --version last), then the exit codes."""
+
+    def _add_common(self):
+        if not getattr(self, "_common_added", False):
+            self._common_added = True
+            self.add_argument("-h", "--help", action="help", help="this help, exit 0")
+            self.add_argument("--version", action="version", version=f"{self.prog} {__version__}",
+                              help="print the program's version, exit 0")
+
+    def parse_known_args(self, args=None, namespace=None):
+        self._add_common()
+        return super().parse_known_args(args, namespace)
+
+    def format_help(self):
+        self._add_common()
+        return super().format_help()
+
+
 def parser(prog, description, exit_extra=None):
-    """An ArgumentParser with --version and the exit codes under the options."""
-    ap = argparse.ArgumentParser(prog=prog, description=description,
-                                 epilog=EXIT_CODES + (f", {exit_extra}" if exit_extra else ""),
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--version", action="version", version=f"{prog} {__version__}",
-                    help="print the program's version, exit 0")
+    """An ArgumentParser with --help and --version and the exit codes under the options."""
+    ap = _Parser(prog=prog, description=description, add_help=False,
+                 epilog=EXIT_CODES + (f", {exit_extra}" if exit_extra else ""),
+                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap._optionals.title = "options (--opt VALUE or --opt=VALUE)"
     return ap
 
 
