@@ -19,6 +19,10 @@ class _Parser(argparse.ArgumentParser):
     """argparse laid out as the C programs' help (host_sim/cli): the usage line,
     the options (--help and --version last), then the exit codes."""
 
+    def __init__(self, *args, **kw):
+        kw["add_help"] = False   # added last, by _add_common (sub-command parsers too)
+        super().__init__(*args, **kw)
+
     def _add_common(self):
         if not getattr(self, "_common_added", False):
             self._common_added = True
@@ -37,7 +41,7 @@ class _Parser(argparse.ArgumentParser):
 
 def parser(prog, description, exit_extra=None):
     """An ArgumentParser with --help and --version and the exit codes under the options."""
-    ap = _Parser(prog=prog, description=description, add_help=False,
+    ap = _Parser(prog=prog, description=description,
                  epilog=EXIT_CODES + (f", {exit_extra}" if exit_extra else ""),
                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap._optionals.title = "options (--opt VALUE or --opt=VALUE)"

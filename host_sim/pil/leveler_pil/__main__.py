@@ -5,8 +5,9 @@ Runs build/stm32f103/leveler.elf under Qiling against the C plant and
 compares with leveler-sim. Exit status 1 when the event figures or the
 per-tick actuator decisions disagree."""
 
-import argparse
 import sys
+
+from leveler import cli as leveler_cli
 
 from . import case
 from .run import ROOT
@@ -29,8 +30,7 @@ def run_one(config, end_s, log, json_path):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m leveler_pil", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = leveler_cli.parser("python -m leveler_pil", __doc__)
     sub = ap.add_subparsers(dest="cmd", required=True)
     c = sub.add_parser("case", help="one config under the emulator beside leveler-sim")
     c.add_argument("--config", required=True)
