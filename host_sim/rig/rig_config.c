@@ -316,8 +316,16 @@ static int outputs_key(parse_state *st, rig_config *cfg, const char *section, co
         CHOICE_FIELD(cfg->outputs, rig_output_kind, "gpiod", "modbus");
     if (!strcmp(key, "consumer"))
         return parse_text(st, section, key, value, cfg->consumer, sizeof cfg->consumer);
-    if (!strcmp(key, "watchdog_ms"))
-        INT_FIELD(cfg->output_watchdog_ms, 0, 65535);
+    if (!strcmp(key, "watchdog_ms")) {
+        long long v;
+        if (!parse_int(st, section, key, value, 0, 65535, &v))
+            return 0;
+        if (v > 0 && v < RIG_WATCHDOG_MIN_MS)
+            return fail(st, section, key, "%lld ms is shorter than a module can honour (0 = off, or %d..65535)", v,
+                        RIG_WATCHDOG_MIN_MS);
+        cfg->output_watchdog_ms = (uint32_t)v;
+        return 1;
+    }
     if (!strcmp(key, "watchdog_register")) {
         st->seen_watchdog_register = true;
         INT_FIELD(cfg->output_watchdog_register, 0, 65535);
@@ -490,9 +498,9 @@ static int check_whole(const char *path, const rig_config *cfg, bool seen_watchd
                  path);
         return -1;
     }
-    if (cfg->output_watchdog_ms > 0 && (cfg->outputs != RIG_OUTPUTS_MODBUS || !seen_watchdog_register)) {
-        snprintf(err, err_len, "%s: [outputs] watchdog_ms: needs backend = modbus and the module's watchdog_register",
-                 path);
+    /* gpiod lines have no module watchdog (the unit's ExecStopPost=--safe-outputs covers them): ignored there. */
+    if (cfg->output_watchdog_ms > 0 && cfg->outputs == RIG_OUTPUTS_MODBUS && !seen_watchdog_register) {
+        snprintf(err, err_len, "%s: [outputs] watchdog_ms: needs the module's watchdog_register", path);
         return -1;
     }
     return 0;

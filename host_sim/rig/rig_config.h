@@ -14,6 +14,10 @@
 
 #define RIG_TEXT_MAX 256
 #define RIG_MAX_WRITERS 16
+/* The shortest module watchdog the rig can feed: it re-sends the outputs every
+ * watchdog_ms / 4 (at least every 2 ticks at 100 ms), so one late tick or one
+ * failed request (timeout_ms) does not trip it; modules count in 10-100 ms steps. */
+#define RIG_WATCHDOG_MIN_MS 100
 
 typedef enum { RIG_CLOCK_MONOTONIC = 0, RIG_CLOCK_LOCKSTEP = 1 } rig_clock;
 typedef enum { RIG_TRANSPORT_RTU = 0, RIG_TRANSPORT_TCP = 1 } rig_transport;

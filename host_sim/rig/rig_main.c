@@ -218,7 +218,8 @@ static int open_supervision_and_log(rig *r, char *err, size_t err_len)
     }
     if (cfg->log_path[0]) {
         runlog_options lo = {.path = cfg->log_path, .config_name = cfg->name, .source = "rig",
-                             .rotate_bytes = (size_t)cfg->log_rotate_bytes, .keep_files = cfg->log_keep_files};
+                             .rotate_bytes = (size_t)cfg->log_rotate_bytes, .keep_files = cfg->log_keep_files,
+                             .keep_previous = 1};
         char lerr[400];
         r->log = runlog_open(&lo, lerr, sizeof lerr);
         if (r->log == NULL) {

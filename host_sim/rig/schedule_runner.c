@@ -53,7 +53,7 @@ typedef struct {
 static int parse_args(int argc, char **argv, runner_args *a)
 {
     *a = (runner_args){.host = "127.0.0.1", .port = 502, .unit = 1, .warn_s = 5.0};
-    for (int i = 1; i < argc; i++) {
+    for (int i = 1; i < argc; i += 2) { /* option, value */
         const char *o = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         char *end = NULL;
         if (!v)
@@ -72,7 +72,6 @@ static int parse_args(int argc, char **argv, runner_args *a)
             return -1;
         if (end && *end)
             return -1;
-        i++;
     }
     return a->schedule && a->port > 0 && a->port < 65536 && a->unit >= 0 && a->unit <= 247 && a->warn_s >= 0 ? 0
                                                                                                            : -1;
