@@ -31,6 +31,7 @@ static void try_connect(rig_link *l)
     l->retry_now = false;
     if (modbus_connect(l->ctx) == 0) {
         l->connected = true;
+        l->stats.connects++;
         return;
     }
     fprintf(stderr, "leveler-rig: I/O module: connect failed: %s (retrying every second)\n", modbus_strerror(errno));

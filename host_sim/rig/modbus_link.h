@@ -31,6 +31,7 @@ typedef struct rig_link rig_link;
 typedef struct {
     uint32_t failed_requests;
     uint32_t reconnects;
+    uint32_t connects; /* successful connects (RTU: the port opened); a change = a new session with the module */
 } rig_link_stats;
 
 /* NULL (message in err) on a bad device or host; an unreachable module is not an error. */

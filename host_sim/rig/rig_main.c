@@ -353,7 +353,7 @@ static int rig_close(rig *r)
         rc = 1;
     }
     uint32_t failed_scans = r->sensors ? rig_sensors_failed_scans(r->sensors) : 0;
-    rig_link_stats ls = r->link ? rig_link_get_stats(r->link) : (rig_link_stats){0, 0};
+    rig_link_stats ls = r->link ? rig_link_get_stats(r->link) : (rig_link_stats){0};
     rig_supervision_close(r->sv);
     rig_sensors_close(r->sensors);
     rig_link_close(r->link);
