@@ -158,20 +158,24 @@ static void log_tick(rig *r, const bool out[HAL_OUT_COUNT])
 
 static void usage(void)
 {
-    fprintf(stderr, "usage: leveler-rig --config FILE [--check]\n"
-                    "  --check   parse the config, print the result and exit\n");
+    fprintf(stderr, "usage: leveler-rig --config FILE [--check | --safe-outputs]\n"
+                    "  --check          parse the config, print the result and exit\n"
+                    "  --safe-outputs   drive every output safe (de-energised) and exit: the unit's ExecStopPost=\n");
 }
 
 /* 0 = run, 2 = usage error. */
-static int parse_args(int argc, char **argv, const char **config_path, bool *check_only)
+static int parse_args(int argc, char **argv, const char **config_path, bool *check_only, bool *safe_only)
 {
     *config_path = NULL;
     *check_only = false;
+    *safe_only = false;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--config") && i + 1 < argc)
             *config_path = argv[++i];
         else if (!strcmp(argv[i], "--check"))
             *check_only = true;
+        else if (!strcmp(argv[i], "--safe-outputs"))
+            *safe_only = true;
         else
             *config_path = NULL, i = argc;
     }
@@ -365,11 +369,37 @@ static int rig_close(rig *r)
     return rc;
 }
 
+/* --safe-outputs: after the service's process is gone (ExecStopPost=, also
+ * after a SIGKILL, a crash, a watchdog kill or a failed ExecStartPre=), the
+ * lines are free: take them, drive every output de-energised, release them.
+ * 0 when the outputs were driven safe, 1 otherwise. */
+static int safe_outputs(rig *r)
+{
+    char err[512];
+    int rc;
+    if (r->cfg.outputs == RIG_OUTPUTS_GPIOD) {
+        rc = rig_gpiod_open(&r->cfg, &r->outputs, err, sizeof err); /* requested de-energised */
+    } else {
+        r->cfg.output_watchdog_ms = 0; /* coils only: nothing is left to feed it */
+        r->link = rig_link_open(&r->cfg, err, sizeof err);
+        rc = r->link ? rig_modbus_outputs_open(&r->cfg, r->link, &r->outputs, err, sizeof err) : -1;
+    }
+    if (rc == 0)
+        r->outputs.close(r->outputs.impl); /* every output off, then released */
+    rig_link_close(r->link);
+    if (rc != 0) {
+        fprintf(stderr, "leveler-rig: --safe-outputs: %s: %s\n", r->config_path, err);
+        return 1;
+    }
+    fprintf(stderr, "leveler-rig: --safe-outputs: every output driven safe\n");
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     static rig r;
-    bool check_only;
-    if (parse_args(argc, argv, &r.config_path, &check_only) != 0)
+    bool check_only, safe_only;
+    if (parse_args(argc, argv, &r.config_path, &check_only, &safe_only) != 0)
         return 2;
     char err[512];
     rig_config_defaults(&r.cfg);
@@ -381,6 +411,8 @@ int main(int argc, char **argv)
         printf("%s: ok\n", r.config_path);
         return 0;
     }
+    if (safe_only)
+        return safe_outputs(&r);
     install_signals();
     if (rig_open(&r) != 0) {
         rig_close(&r);
