@@ -18,6 +18,8 @@ struct rig_link {
     uint32_t failures_in_row;
     uint32_t reconnect_after; /* failures in a row before the next reconnect: 3, doubling to 100 */
     rig_link_stats stats;
+    struct timespec last_said;  /* connect failures: said at once, then every 10 s with a count */
+    uint32_t unsaid;
 };
 
 static double seconds_since(const struct timespec *t)
@@ -36,7 +38,14 @@ static void try_connect(rig_link *l)
         l->stats.connects++;
         return;
     }
-    fprintf(stderr, "leveler-rig: I/O module: connect failed: %s (retrying every second)\n", modbus_strerror(errno));
+    if (l->unsaid > 0 && seconds_since(&l->last_said) < 10.0) {
+        l->unsaid++;
+        return;
+    }
+    fprintf(stderr, "leveler-rig: I/O module: connect failed: %s (retrying every second; %u failures not shown)\n",
+            modbus_strerror(errno), l->unsaid > 0 ? l->unsaid - 1 : 0);
+    clock_gettime(CLOCK_MONOTONIC, &l->last_said);
+    l->unsaid = 1;
 }
 
 rig_link *rig_link_open(const rig_config *cfg, char *err, size_t err_len)

@@ -68,6 +68,8 @@ void rig_config_defaults(rig_config *cfg)
     cfg->log_rotate_bytes = 0;
     cfg->log_keep_files = 5;
     cfg->log_load_n = NAN;
+    cfg->auto_clear_after_s = 0;
+    cfg->auto_clear_max_per_hour = 6;
 }
 
 typedef struct {
@@ -415,6 +417,16 @@ static int log_key(parse_state *st, rig_config *cfg, const char *section, const 
     return fail(st, section, key, "unknown key");
 }
 
+/* [faults]: the auto-clear of link faults (auto_clear.h). */
+static int faults_key(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    if (!strcmp(key, "auto_clear_after_s"))
+        INT_FIELD(cfg->auto_clear_after_s, 0, 3600);
+    if (!strcmp(key, "auto_clear_max_per_hour"))
+        INT_FIELD(cfg->auto_clear_max_per_hour, 1, 60);
+    return fail(st, section, key, "unknown key (allowed auto_clear_after_s, auto_clear_max_per_hour)");
+}
+
 static int handler(void *user, const char *section, const char *key, const char *value)
 {
     parse_state *st = user;
@@ -432,7 +444,7 @@ static int handler(void *user, const char *section, const char *key, const char 
     } sections[] = {
         {"rig", false, rig_key},           {"sensors", false, sensors_key},         {"sensor.", true, sensor_section},
         {"outputs", false, outputs_key},   {"output.", true, output_section},       {"supervision", false, supervision_key},
-        {"log", false, log_key},
+        {"log", false, log_key},           {"faults", false, faults_key},
     };
     for (size_t i = 0; i < sizeof sections / sizeof sections[0]; i++) {
         bool match = sections[i].prefix ? !strncmp(section, sections[i].name, strlen(sections[i].name))

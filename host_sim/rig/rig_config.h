@@ -84,6 +84,9 @@ typedef struct {
     uint64_t log_rotate_bytes;
     uint32_t log_keep_files;
     double log_load_n;                /* logged load when there is no load channel */
+
+    uint32_t auto_clear_after_s;      /* [faults]: link faults cleared after this long of valid sensors; 0 = off */
+    uint32_t auto_clear_max_per_hour; /* at most this many auto-clears in any hour */
 } rig_config;
 
 /* Defaults: see boards/linux-rig/rig.ini. */

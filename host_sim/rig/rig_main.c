@@ -41,6 +41,8 @@
 #include "leveler/app.h"
 #include "leveler/regmap.h"
 #include "leveler/regmap_addr.h"
+#include "leveler/status.h"
+#include "auto_clear.h"
 #include "output_backend.h"
 #include "rig_config.h"
 #include "rig_hal.h"
@@ -107,7 +109,12 @@ typedef struct {
     uint64_t ticks, overruns;
     long long notify_every_ns; /* systemd watchdog: 0 = not asked for */
     long long next_notify_ns;
+    rig_auto_clear auto_clear;
+    long long next_output_error_ns; /* stderr during an outage: one line per RIG_SAY_EVERY_NS */
+    unsigned output_errors_unsaid;
 } rig;
+
+#define RIG_SAY_EVERY_NS (10 * 1000 * NS_PER_MS)
 
 static void log_tick(rig *r, const bool out[HAL_OUT_COUNT])
 {
@@ -315,6 +322,50 @@ static void wait_for_tick(rig *r, long long *deadline)
     }
 }
 
+/* A failed output write, said at once and then at most every 10 s with the
+ * count of those not said: an outage is a few lines, not one per tick. */
+static void say_output_error(rig *r, const char *err)
+{
+    long long now = mono_ns();
+    if (now < r->next_output_error_ns) {
+        r->output_errors_unsaid++;
+        return;
+    }
+    if (r->output_errors_unsaid > 0)
+        fprintf(stderr, "leveler-rig: %s (and %u more failed output writes in the last %lld s)\n", err,
+                r->output_errors_unsaid, RIG_SAY_EVERY_NS / 1000 / NS_PER_MS);
+    else
+        fprintf(stderr, "leveler-rig: %s\n", err);
+    r->output_errors_unsaid = 0;
+    r->next_output_error_ns = now + RIG_SAY_EVERY_NS;
+}
+
+/* [faults] auto-clear of link faults (auto_clear.h), after the tick. */
+static void auto_clear_link_faults(rig *r, bool scan_failed)
+{
+    const leveler_status *st = leveler_app_status();
+    uint16_t latched = st->latched_fault_bits;
+    switch (rig_auto_clear_step(&r->auto_clear, hal_now_ms(), latched, st->sensors_valid, scan_failed)) {
+    case RIG_AUTO_CLEAR_NOW: {
+        const uint16_t one = 1; /* the clear_faults coil, as an operator's write */
+        (void)leveler_regs_write(LEVELER_TABLE_COIL, LEVELER_COIL_CLEAR_FAULTS, 1, &one, NULL);
+        leveler_app_report_link_faults_auto_cleared(r->auto_clear.count);
+        fprintf(stderr,
+                "leveler-rig: link faults 0x%04x cleared after %u s of valid sensors (auto-clear %u, %u in the last "
+                "hour of at most %u)\n",
+                latched, r->cfg.auto_clear_after_s, r->auto_clear.count, r->auto_clear.recent,
+                r->auto_clear.max_per_hour);
+        break;
+    }
+    case RIG_AUTO_CLEAR_LIMIT:
+        fprintf(stderr, "leveler-rig: link faults 0x%04x stay latched: %u auto-clears in the last hour already "
+                        "(clear_faults to go on)\n", latched, r->auto_clear.max_per_hour);
+        break;
+    case RIG_AUTO_CLEAR_NO:
+        break;
+    }
+}
+
 static void rig_loop(rig *r)
 {
     bool out[HAL_OUT_COUNT], applied[HAL_OUT_COUNT];
@@ -322,19 +373,23 @@ static void rig_loop(rig *r)
     char err[512];
     const uint64_t refresh = refresh_ticks(&r->cfg);
     long long deadline = mono_ns() + TICK_NS;
+    rig_auto_clear_init(&r->auto_clear, r->cfg.auto_clear_after_s * 1000u, r->cfg.auto_clear_max_per_hour);
     while (!stop_requested) {
+        uint32_t failed_before = rig_sensors_failed_scans(r->sensors);
         rig_sensors_scan(r->sensors);
+        bool scan_failed = rig_sensors_failed_scans(r->sensors) != failed_before;
         if (r->cfg.run_seconds > 0 && hal_now_ms() > r->cfg.run_seconds * 1000.0)
             break;
         leveler_app_report_sensor_scans_failed(rig_sensors_failed_scans(r->sensors));
         leveler_app_tick();
+        auto_clear_link_faults(r, scan_failed);
         notify_alive(r);
         rig_hal_wanted_outputs(out);
         if (!have_applied || memcmp(out, applied, sizeof out) != 0 || r->ticks % refresh == 0) {
             /* A failed write is tried again next tick. */
             have_applied = r->outputs.apply(r->outputs.impl, out, err, sizeof err) == 0;
             if (!have_applied)
-                fprintf(stderr, "leveler-rig: %s\n", err);
+                say_output_error(r, err);
             memcpy(applied, out, sizeof out);
         }
         if (r->log)

@@ -179,20 +179,32 @@ static bool has_frame(const client *c)
 /* A free slot, or the slot of a client that may make room: one that never
  * completed a request and is older than NEW_CLIENT_GRACE_MS (oldest first),
  * else one with no complete request for request_timeout_ms (longest idle
- * first). NULL: every slot is busy; new connections wait in the backlog. */
-static client *slot_for_new(rig_supervision *sv, uint64_t now)
+ * first), else (every slot held by clients that keep polling) the least
+ * recently active one with nothing buffered, quiet for NEW_CLIENT_GRACE_MS:
+ * it gives way, so a fifth poller is not shut out by four. NULL: every slot
+ * is mid-request; new connections wait in the backlog. */
+static client *slot_for_new(rig_supervision *sv, uint64_t now, bool *least_active)
 {
-    client *victim = NULL;
+    client *victim = NULL, *fallback = NULL;
+    *least_active = false;
     for (uint32_t i = 0; i < sv->max_clients; i++) {
         client *c = &sv->clients[i];
         if (c->fd < 0)
             return c;
         uint64_t quiet = now - c->last_request_ms;
-        if (has_frame(c) || quiet < (c->served ? sv->request_timeout_ms : NEW_CLIENT_GRACE_MS))
+        if (has_frame(c) || quiet < NEW_CLIENT_GRACE_MS)
+            continue;
+        if (c->len == 0 && (fallback == NULL || c->last_request_ms < fallback->last_request_ms))
+            fallback = c;
+        if (quiet < (c->served ? sv->request_timeout_ms : NEW_CLIENT_GRACE_MS))
             continue;
         if (victim == NULL || (c->served == 0 && victim->served != 0) ||
             ((c->served == 0) == (victim->served == 0) && c->last_request_ms < victim->last_request_ms))
             victim = c;
+    }
+    if (victim == NULL && fallback != NULL) {
+        *least_active = true;
+        return fallback;
     }
     return victim;
 }
@@ -203,7 +215,8 @@ static void accept_clients(rig_supervision *sv)
 {
     for (int n = 0; n < 8; n++) {
         uint64_t now = now_ms();
-        client *slot = slot_for_new(sv, now);
+        bool least_active;
+        client *slot = slot_for_new(sv, now, &least_active);
         if (slot == NULL)
             return;
         int fd = accept4(sv->listen_fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
@@ -212,6 +225,7 @@ static void accept_clients(rig_supervision *sv)
         if (slot->fd >= 0) {
             drop(slot);
             sv->stats.evicted++;
+            sv->stats.evicted_active += least_active;
         }
         *slot = (client){.fd = fd, .last_request_ms = now, .may_write = peer_may_write(sv, fd)};
         sv->stats.accepted++;
@@ -426,7 +440,8 @@ void rig_supervision_serve(rig_supervision *sv, int timeout_ms)
     int n = 0;
     bool buffered = false; /* a client has whole frames waiting: do not sleep */
     /* Without room, the listening socket is left out: no busy loop on a backlog. */
-    fds[n] = (struct pollfd){.fd = slot_for_new(sv, now_ms()) ? sv->listen_fd : -1, .events = POLLIN};
+    bool least_active;
+    fds[n] = (struct pollfd){.fd = slot_for_new(sv, now_ms(), &least_active) ? sv->listen_fd : -1, .events = POLLIN};
     owner[n++] = -1;
     for (uint32_t i = 0; i < sv->max_clients; i++) {
         if (sv->clients[i].fd >= 0) {

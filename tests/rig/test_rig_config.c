@@ -58,6 +58,8 @@ static void example_config_parses(void **state)
     assert_int_equal(cfg.channel[HAL_ADC_HEIGHT].raw_lo, 2000);
     /* Issue 23: the module watchdog is on out of the box. */
     assert_int_equal(cfg.output_watchdog_ms, 200);
+    assert_int_equal(cfg.auto_clear_after_s, 10);
+    assert_int_equal(cfg.auto_clear_max_per_hour, 6);
 }
 
 
@@ -163,6 +165,8 @@ static void watchdog_bounded(void **state)
                                &cfg, err, sizeof err), 0);
     assert_int_equal(cfg.output_watchdog_ms, 100);
     assert_int_equal(load_text("[outputs]\nbackend = modbus\nwatchdog_ms = 0\n" OUTPUTS, &cfg, err, sizeof err), 0);
+    assert_int_equal(cfg.auto_clear_after_s, 0); /* off unless configured */
+    expect_error(OUTPUTS "[faults]\nauto_clear_max_per_hour = 0\n", ":12: [faults] auto_clear_max_per_hour:");
 }
 
 static void missing_file_is_named(void **state)
