@@ -68,6 +68,10 @@ void rig_config_defaults(rig_config *cfg)
     cfg->log_rotate_bytes = 0;
     cfg->log_keep_files = 5;
     cfg->log_load_n = NAN;
+    snprintf(cfg->mbaps_address, sizeof cfg->mbaps_address, "0.0.0.0");
+    cfg->mbaps_port = 802;
+    cfg->mbaps_write_role_count = 1;
+    snprintf(cfg->mbaps_write_roles[0], sizeof cfg->mbaps_write_roles[0], "Operator");
     cfg->auto_clear_after_s = 0;
     cfg->auto_clear_max_per_hour = 6;
 }
@@ -388,6 +392,8 @@ static int supervision_key(parse_state *st, rig_config *cfg, const char *section
         return parse_bool(st, section, key, value, &cfg->read_only);
     if (!strcmp(key, "writers"))
         return parse_writers(st, cfg, section, key, value);
+    if (!strcmp(key, "write_socket"))
+        return parse_text(st, section, key, value, cfg->write_socket, sizeof cfg->write_socket);
     if (!strcmp(key, "idle_timeout_s")) {
         long long v;
         if (!parse_int(st, section, key, value, 1, 86400, &v))
@@ -414,6 +420,43 @@ static int log_key(parse_state *st, rig_config *cfg, const char *section, const 
         INT_FIELD(cfg->log_keep_files, 0, 1000);
     if (!strcmp(key, "load_n"))
         return parse_double(st, section, key, value, 0, 1e6, &cfg->log_load_n);
+    return fail(st, section, key, "unknown key");
+}
+
+/* "a, b": role names (the Modbus/TCP Security role extension's text). */
+static int parse_roles(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    char list[RIG_TEXT_MAX * 4];
+    snprintf(list, sizeof list, "%s", value);
+    cfg->mbaps_write_role_count = 0;
+    for (char *save = NULL, *tok = strtok_r(list, ", \t", &save); tok; tok = strtok_r(NULL, ", \t", &save)) {
+        if (cfg->mbaps_write_role_count == RIG_MAX_WRITERS)
+            return fail(st, section, key, "more than %d roles", RIG_MAX_WRITERS);
+        if (strlen(tok) >= sizeof cfg->mbaps_write_roles[0])
+            return fail(st, section, key, "role '%s' longer than %zu bytes", tok, sizeof cfg->mbaps_write_roles[0] - 1);
+        snprintf(cfg->mbaps_write_roles[cfg->mbaps_write_role_count++], sizeof cfg->mbaps_write_roles[0], "%s", tok);
+    }
+    return 1;
+}
+
+/* [mbaps]: leveler-mbaps (TLS with client certificates, roles). */
+static int mbaps_key(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    static const struct {
+        const char *key;
+        size_t offset;
+    } paths[] = {{"port_file", offsetof(rig_config, mbaps_port_file)}, {"cert", offsetof(rig_config, mbaps_cert)},
+                 {"key", offsetof(rig_config, mbaps_key)},             {"ca", offsetof(rig_config, mbaps_ca)},
+                 {"crl", offsetof(rig_config, mbaps_crl)}};
+    for (size_t i = 0; i < sizeof paths / sizeof paths[0]; i++)
+        if (!strcmp(key, paths[i].key))
+            return parse_text(st, section, key, value, (char *)cfg + paths[i].offset, RIG_TEXT_MAX);
+    if (!strcmp(key, "address"))
+        return parse_address(st, section, key, value, cfg->mbaps_address, sizeof cfg->mbaps_address);
+    if (!strcmp(key, "port"))
+        INT_FIELD(cfg->mbaps_port, 0, 65535);
+    if (!strcmp(key, "write_roles"))
+        return parse_roles(st, cfg, section, key, value);
     return fail(st, section, key, "unknown key");
 }
 
@@ -445,6 +488,7 @@ static int handler(void *user, const char *section, const char *key, const char 
         {"rig", false, rig_key},           {"sensors", false, sensors_key},         {"sensor.", true, sensor_section},
         {"outputs", false, outputs_key},   {"output.", true, output_section},       {"supervision", false, supervision_key},
         {"log", false, log_key},           {"faults", false, faults_key},
+        {"mbaps", false, mbaps_key},
     };
     for (size_t i = 0; i < sizeof sections / sizeof sections[0]; i++) {
         bool match = sections[i].prefix ? !strncmp(section, sections[i].name, strlen(sections[i].name))
@@ -508,6 +552,11 @@ static int check_whole(const char *path, const rig_config *cfg, bool seen_watchd
     if (cfg->log_path[0] && !cfg->load.enabled && !isfinite(cfg->log_load_n)) {
         snprintf(err, err_len, "%s: [log] load_n: required when there is no [sensor.load] (the log needs a load)",
                  path);
+        return -1;
+    }
+    if (cfg->write_socket[0] && cfg->writer_count > 0) {
+        snprintf(err, err_len, "%s: [supervision] writers, write_socket: one or the other (with write_socket only "
+                 "its clients write: a source address is no proof of who sent it)", path);
         return -1;
     }
     /* gpiod lines have no module watchdog (the unit's ExecStopPost=--safe-outputs covers them): ignored there. */

@@ -79,6 +79,16 @@ typedef struct {
     uint32_t max_clients;
     uint32_t writer_count;            /* 0 = every client may write (unless read_only) */
     char writers[RIG_MAX_WRITERS][48]; /* numeric addresses allowed to write */
+    char write_socket[RIG_TEXT_MAX];  /* Unix socket whose clients may write (file permissions guard it);
+                                         when set, no TCP client writes (leveler-mbaps connects here) */
+
+    /* [mbaps]: leveler-mbaps, Modbus/TCP Security in front of write_socket */
+    char mbaps_address[RIG_TEXT_MAX];
+    uint16_t mbaps_port;              /* 0 = kernel's choice (tests), 802 by the specification */
+    char mbaps_port_file[RIG_TEXT_MAX];
+    char mbaps_cert[RIG_TEXT_MAX], mbaps_key[RIG_TEXT_MAX], mbaps_ca[RIG_TEXT_MAX], mbaps_crl[RIG_TEXT_MAX];
+    uint32_t mbaps_write_role_count;
+    char mbaps_write_roles[RIG_MAX_WRITERS][48]; /* role extension values that may write */
 
     char log_path[RIG_TEXT_MAX];      /* empty = no run log */
     uint64_t log_rotate_bytes;

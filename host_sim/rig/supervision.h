@@ -11,6 +11,10 @@
  *   exception 01 (ILLEGAL FUNCTION): the server does not offer writing.
  * - Function codes other than 01-06, 15, 16: exception 01.
  * - writers: only clients from these addresses may write; others get exception 01.
+ * - write_socket: a Unix socket (mode 0660) whose clients may write; with it
+ *   no TCP client writes, whatever its address (another local process can
+ *   take any loopback address; it cannot pass the socket's permissions).
+ *   leveler-mbaps connects here after checking the client certificate's role.
  * - A request must arrive whole within request_timeout_ms of its first byte
  *   (slow clients are dropped); a client with no complete request for
  *   idle_timeout_ms is dropped (single bytes do not keep it); so is one whose
