@@ -4,7 +4,7 @@
  *
  *   leveler-plant-server --config host_sim/configs/thesis-900lb.ini
  *       [--address 127.0.0.1] [--port 0] [--port-file F] [--clock lockstep|realtime]
- *       [--max-seconds S]
+ *       [--max-seconds S] [--schedule FILE]
  *
  * Module map (0-based):
  *   input registers 0..3   ADC counts of height, P2, P1, P3 (plant_sensor_counts, 12-bit)
@@ -57,7 +57,7 @@ static void on_signal(int sig)
 }
 
 typedef struct {
-    const char *config, *address, *port_file;
+    const char *config, *address, *port_file, *schedule;
     int port;
     int lockstep;
     double max_seconds;
@@ -68,6 +68,7 @@ typedef struct {
     plant pl;
     plant_rng rng;
     sim_load_step steps[4];
+    sim_load_step *file_steps; /* --schedule: loads from a schedule file (its register columns are not served) */
     sim_schedule_cursor cursor;
     sim_stepper st;
     modbus_mapping_t *map;
@@ -125,7 +126,7 @@ static double mono_s(void)
 static int usage(void)
 {
     fprintf(stderr, "usage: leveler-plant-server --config FILE [--address A] [--port P] [--port-file F]"
-                    " [--clock lockstep|realtime] [--max-seconds S]\n");
+                    " [--clock lockstep|realtime] [--max-seconds S] [--schedule FILE]\n");
     return 2;
 }
 
@@ -154,6 +155,8 @@ static int parse_args(int argc, char **argv, server_options *o)
             o->lockstep = !strcmp(v, "lockstep");
         } else if (!strcmp(a, "--max-seconds"))
             o->max_seconds = atof(v);
+        else if (!strcmp(a, "--schedule"))
+            o->schedule = v;
         else
             return usage();
     }
@@ -166,7 +169,7 @@ static int parse_args(int argc, char **argv, server_options *o)
 
 /* The plant at 10 ms: the first tick ran under the [initial] actuators, which
  * the coils now hold. 0, or the exit status after a message. */
-static int start_plant(served_plant *sp, const char *config)
+static int start_plant(served_plant *sp, const char *config, const char *schedule)
 {
     char err[512];
     if (plant_config_load(config, &sp->cfg, err, sizeof err) != 0) {
@@ -182,6 +185,13 @@ static int start_plant(served_plant *sp, const char *config)
     plant_rng_seed(&sp->rng, sp->cfg.sensors.noise_seed);
     double end_s;
     sp->cursor = (sim_schedule_cursor){sp->steps, sim_schedule_from_config(&sp->cfg, sp->steps, &end_s), 0};
+    size_t count = 0;
+    if (schedule && sim_schedule_load(schedule, &sp->file_steps, &count, err, sizeof err) != 0) {
+        fprintf(stderr, "leveler-plant-server: --schedule %s\n", err);
+        return 2;
+    }
+    if (schedule)
+        sp->cursor = (sim_schedule_cursor){sp->file_steps, count, 0}; /* the last load holds past its end */
     sp->st = (sim_stepper){.cfg = &sp->cfg, .plant = &sp->pl, .ops = &sim_nominal_plant,
                            .commands = coil_commands, .commands_user = sp->map,
                            .load = sim_load_from_schedule, .load_user = &sp->cursor, .initial_outputs = true};
@@ -319,6 +329,7 @@ static void serve(served_plant *sp, const server_options *o)
 
 static void close_server(served_plant *sp)
 {
+    free(sp->file_steps);
     for (int i = 0; i < MAX_CLIENTS; i++)
         if (sp->clients[i] >= 0)
             close(sp->clients[i]);
@@ -337,7 +348,7 @@ int main(int argc, char **argv)
     sp.listen_fd = -1;
     int rc = parse_args(argc, argv, &o);
     if (rc == 0)
-        rc = start_plant(&sp, o.config);
+        rc = start_plant(&sp, o.config, o.schedule);
     if (rc == 0)
         rc = open_server(&sp, &o);
     if (rc == 0)
