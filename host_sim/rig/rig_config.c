@@ -360,21 +360,25 @@ static int output_section(parse_state *st, rig_config *cfg, const char *section,
     return fail(st, section, key, "unknown output (allowed compressor, spring_valve, vent_valve, acc_valve, status_led)");
 }
 
-/* "a, b, c": each a numeric address (as [supervision] address). */
-static int parse_writers(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+/* "a, b, c" into items (RIG_MAX_WRITERS of 48 bytes): numeric addresses (as
+ * [supervision] address) when addresses, else names. */
+static int parse_list(parse_state *st, const char *section, const char *key, const char *value,
+                      char (*items)[48], uint32_t *count, bool addresses)
 {
     char list[RIG_TEXT_MAX * 4];
     snprintf(list, sizeof list, "%s", value);
-    cfg->writer_count = 0;
+    *count = 0;
     for (char *save = NULL, *tok = strtok_r(list, ", \t", &save); tok; tok = strtok_r(NULL, ", \t", &save)) {
-        if (cfg->writer_count == RIG_MAX_WRITERS)
-            return fail(st, section, key, "more than %d addresses", RIG_MAX_WRITERS);
-        if (!parse_address(st, section, key, tok, cfg->writers[cfg->writer_count], sizeof cfg->writers[0]))
+        if (*count == RIG_MAX_WRITERS)
+            return fail(st, section, key, "more than %d %s", RIG_MAX_WRITERS, addresses ? "addresses" : "names");
+        if (addresses && !parse_address(st, section, key, tok, items[*count], sizeof items[0]))
             return 0;
-        cfg->writer_count++;
+        if (!addresses && strlen(tok) >= sizeof items[0])
+            return fail(st, section, key, "'%s' longer than %zu bytes", tok, sizeof items[0] - 1);
+        if (!addresses)
+            snprintf(items[*count], sizeof items[0], "%s", tok);
+        (*count)++;
     }
-    if (cfg->writer_count == 0)
-        return fail(st, section, key, "empty (leave the key out to let every client write)");
     return 1;
 }
 
@@ -391,7 +395,7 @@ static int supervision_key(parse_state *st, rig_config *cfg, const char *section
     if (!strcmp(key, "read_only"))
         return parse_bool(st, section, key, value, &cfg->read_only);
     if (!strcmp(key, "writers"))
-        return parse_writers(st, cfg, section, key, value);
+        return parse_list(st, section, key, value, cfg->writers, &cfg->writer_count, true);
     if (!strcmp(key, "write_socket"))
         return parse_text(st, section, key, value, cfg->write_socket, sizeof cfg->write_socket);
     if (!strcmp(key, "idle_timeout_s")) {
@@ -423,21 +427,6 @@ static int log_key(parse_state *st, rig_config *cfg, const char *section, const 
     return fail(st, section, key, "unknown key");
 }
 
-/* "a, b": role names (the Modbus/TCP Security role extension's text). */
-static int parse_roles(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
-{
-    char list[RIG_TEXT_MAX * 4];
-    snprintf(list, sizeof list, "%s", value);
-    cfg->mbaps_write_role_count = 0;
-    for (char *save = NULL, *tok = strtok_r(list, ", \t", &save); tok; tok = strtok_r(NULL, ", \t", &save)) {
-        if (cfg->mbaps_write_role_count == RIG_MAX_WRITERS)
-            return fail(st, section, key, "more than %d roles", RIG_MAX_WRITERS);
-        if (strlen(tok) >= sizeof cfg->mbaps_write_roles[0])
-            return fail(st, section, key, "role '%s' longer than %zu bytes", tok, sizeof cfg->mbaps_write_roles[0] - 1);
-        snprintf(cfg->mbaps_write_roles[cfg->mbaps_write_role_count++], sizeof cfg->mbaps_write_roles[0], "%s", tok);
-    }
-    return 1;
-}
 
 /* [mbaps]: leveler-mbaps (TLS with client certificates, roles). */
 static int mbaps_key(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
@@ -456,7 +445,7 @@ static int mbaps_key(parse_state *st, rig_config *cfg, const char *section, cons
     if (!strcmp(key, "port"))
         INT_FIELD(cfg->mbaps_port, 0, 65535);
     if (!strcmp(key, "write_roles"))
-        return parse_roles(st, cfg, section, key, value);
+        return parse_list(st, section, key, value, cfg->mbaps_write_roles, &cfg->mbaps_write_role_count, false);
     return fail(st, section, key, "unknown key");
 }
 
