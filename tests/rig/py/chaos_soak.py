@@ -483,6 +483,9 @@ class Soak:
                 self.notes.append(f"log gap {b - a:.3f} s at rig time {a:.2f} s with no fault under way")
 
     def report(self):
+        (self.work / "counts.json").write_text(json.dumps(
+            {"seconds": self.args.seconds, "seed": self.args.seed, "faults": self.faults_fired,
+             "watchdog_after_restart": self.watchdog_after_restart, "counts": self.counts}, indent=1) + "\n")
         print(f"faults fired: {json.dumps(self.faults_fired)}")
         print(f"watchdog register after each module restart: {self.watchdog_after_restart} "
               f"(want {WATCHDOG_MS} each)")
