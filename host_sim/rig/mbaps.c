@@ -26,6 +26,7 @@
 #include <netdb.h>
 #include <poll.h>
 #include <signal.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -319,11 +320,12 @@ static void accept_loop(SSL_CTX *ctx, int lfd, const rig_config *cfg)
 
 int main(int argc, char **argv)
 {
-    if (argc != 3 || strcmp(argv[1], "--config") != 0) {
-        fprintf(stderr, "usage: leveler-mbaps --config FILE\n"
+    bool help = argc == 2 && !strcmp(argv[1], "--help");
+    if (help || argc != 3 || strcmp(argv[1], "--config") != 0) {
+        fprintf(help ? stdout : stderr, "usage: leveler-mbaps --config FILE\n"
                         "  Modbus/TCP Security (TLS, client certificates, roles) in front of leveler-rig:\n"
                         "  [mbaps] and [supervision] write_socket in FILE (boards/linux-rig/rig.ini)\n");
-        return 2;
+        return help ? 0 : 2;
     }
     static rig_config cfg;
     char err[512];

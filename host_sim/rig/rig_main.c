@@ -18,10 +18,12 @@
  *
  * When the process cannot do that (SIGKILL, a crash, a hang), two watchdogs
  * outside it act: the output module's communication watchdog ([outputs]
- * watchdog_ms, written at start; the module drives its outputs safe when the
- * rig stops writing) and systemd's (WatchdogSec= in the unit: the tick loop
- * sends WATCHDOG=1; a silent rig is killed and restarted, and a start drives
- * every output safe first).
+ * watchdog_ms, armed at start and again whenever the module reconnects, read
+ * back; the module drives its outputs safe when the rig stops writing) and
+ * systemd's (WatchdogSec= in the unit: the tick loop sends WATCHDOG=1; a
+ * silent rig is killed and restarted, and a start drives every output safe
+ * first). Whatever ended the process, the unit's ExecStopPost= runs
+ * `leveler-rig --safe-outputs` (GPIO lines have no watchdog of their own).
  *
  * The run log never stops control: a row the disk refuses is dropped whole
  * (log_fault, log_rows_dropped in the register map) and SIGXFSZ is ignored,
