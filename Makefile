@@ -6,6 +6,7 @@
 #   make bench      speed figures (simulator, diagnosis, PIL cases and tick cost) and the controller scorecard (docs/controller.md)
 #   make coverage   line coverage of firmware/ (gcovr)
 #   make fuzz       libFuzzer on the Modbus RTU frame parser (FUZZ_SECONDS=60)
+#   make soak       the rig's 10-minute chaos soak (CTest label soak; a 60 s one runs in make test)
 #   make blindtest  the full blind test of the sim-to-real diagnosis
 #   make flash      write build/stm32f103/leveler.bin to the board (OpenOCD or st-flash)
 #   make clean
@@ -16,7 +17,7 @@ PY        := $(CURDIR)/.venv/bin/python
 FUZZ_SECONDS ?= 60
 export LEVELER_PYTHON := $(PY)
 
-.PHONY: all test sim pil firmware bench coverage fuzz blindtest flash clean bootstrap
+.PHONY: all test sim pil firmware bench coverage fuzz soak blindtest flash clean bootstrap
 
 all: test
 
@@ -32,7 +33,7 @@ test: bootstrap firmware
 	@mkdir -p build
 	$(call configure,build/test,-DCMAKE_BUILD_TYPE=Debug -DLEVELER_SANITIZE=ON)
 	$(CMAKE) --build build/test -j $(JOBS)
-	cd build/test && ctest --output-on-failure -j $(JOBS)
+	cd build/test && ctest --output-on-failure -j $(JOBS) -LE '^soak$$'
 
 sim: bootstrap
 	@mkdir -p build
@@ -72,6 +73,12 @@ fuzz: bootstrap
 	$(call configure,build/fuzz,-DCMAKE_BUILD_TYPE=Debug -DCMAKE_C_COMPILER=clang -DLEVELER_FUZZ=ON)
 	$(CMAKE) --build build/fuzz -j $(JOBS)
 	$(CMAKE) --build build/fuzz --target run-fuzz -- FUZZ_SECONDS=$(FUZZ_SECONDS)
+
+soak: bootstrap
+	@mkdir -p build
+	$(call configure,build/test,-DCMAKE_BUILD_TYPE=Debug -DLEVELER_SANITIZE=ON)
+	$(CMAKE) --build build/test -j $(JOBS)
+	cd build/test && ctest --output-on-failure -L '^soak$$'
 
 blindtest: bootstrap
 	@mkdir -p build

@@ -200,6 +200,11 @@ void leveler_app_report_sensor_scans_failed(uint32_t failed)
     g_status.sensor_scans_failed = failed;
 }
 
+void leveler_app_report_link_faults_auto_cleared(uint32_t count)
+{
+    g_status.link_faults_auto_cleared = count;
+}
+
 void leveler_app_report_clock_fault(bool hse_failed)
 {
     g_status.clock_fault = hse_failed;

@@ -3,7 +3,9 @@
 #include "modbus_link.h"
 
 #include <errno.h>
+#include <poll.h>
 #include <stdio.h>
+#include <unistd.h>
 #include <stdlib.h>
 #include <time.h>
 
@@ -16,6 +18,8 @@ struct rig_link {
     uint32_t failures_in_row;
     uint32_t reconnect_after; /* failures in a row before the next reconnect: 3, doubling to 100 */
     rig_link_stats stats;
+    struct timespec last_said;  /* connect failures: said at once, then every 10 s with a count */
+    uint32_t unsaid;
 };
 
 static double seconds_since(const struct timespec *t)
@@ -31,9 +35,17 @@ static void try_connect(rig_link *l)
     l->retry_now = false;
     if (modbus_connect(l->ctx) == 0) {
         l->connected = true;
+        l->stats.connects++;
         return;
     }
-    fprintf(stderr, "leveler-rig: I/O module: connect failed: %s (retrying every second)\n", modbus_strerror(errno));
+    if (l->unsaid > 0 && seconds_since(&l->last_said) < 10.0) {
+        l->unsaid++;
+        return;
+    }
+    fprintf(stderr, "leveler-rig: I/O module: connect failed: %s (retrying every second; %u failures not shown)\n",
+            modbus_strerror(errno), l->unsaid > 0 ? l->unsaid - 1 : 0);
+    clock_gettime(CLOCK_MONOTONIC, &l->last_said);
+    l->unsaid = 1;
 }
 
 rig_link *rig_link_open(const rig_config *cfg, char *err, size_t err_len)
@@ -90,6 +102,25 @@ static bool link_is_dead(int e)
     return e == ECONNRESET || e == EPIPE || e == EBADF || e == ENOTCONN || e == ECONNREFUSED;
 }
 
+/* RTU after a failed request: the reply may still be on its way and would be
+ * taken as the next request's answer (RTU replies carry no transaction id).
+ * Bytes are read and discarded until the line has been quiet for the reply
+ * timeout (at most RIG_LINK_DRAIN_MAX windows), then the next request goes
+ * out: a reply later than twice the timeout is a module fault, not data. */
+static void drain_late_reply(rig_link *l)
+{
+    int fd = modbus_get_socket(l->ctx);
+    int window_ms = (int)l->cfg->timeout_ms;
+    uint8_t junk[256];
+    for (int n = 0; fd >= 0 && n < RIG_LINK_DRAIN_MAX; n++) {
+        struct pollfd p = {.fd = fd, .events = POLLIN};
+        if (poll(&p, 1, window_ms < 1 ? 1 : window_ms) <= 0 || read(fd, junk, sizeof junk) <= 0)
+            break; /* quiet for a whole window */
+        l->stats.late_bytes_discarded++;
+    }
+    modbus_flush(l->ctx);
+}
+
 void rig_link_end(rig_link *l, bool ok)
 {
     if (ok) {
@@ -113,7 +144,10 @@ void rig_link_end(rig_link *l, bool ok)
         l->stats.reconnects++;
         return;
     }
-    modbus_flush(l->ctx);
+    if (!tcp) /* a timeout, or a garbled (partial, late) reply */
+        drain_late_reply(l);
+    else
+        modbus_flush(l->ctx);
 }
 
 rig_link_stats rig_link_get_stats(const rig_link *l)

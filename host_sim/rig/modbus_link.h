@@ -2,8 +2,11 @@
  * The Modbus link to the rig's I/O module (RTU or TCP, libmodbus), shared by
  * the sensor scan and the coil outputs. It keeps request and reply in step:
  *
- * - before every request, stale bytes (a late reply to an earlier request
- *   that timed out) are flushed, so a late reply costs one scan, not the rig;
+ * - before every request, stale bytes are flushed; on RTU, where a reply
+ *   carries no transaction id, a request that timed out is followed by a
+ *   drain: bytes are discarded until the line is quiet for timeout_ms, so a
+ *   reply arriving after the timeout is thrown away, never taken as the next
+ *   request's answer (rig_link_end);
  * - libmodbus checks each reply's transaction id (TCP) / address and CRC (RTU)
  *   and reports a mismatch as an error;
  * - after an error the link is flushed; after RIG_LINK_RECONNECT_AFTER failed
@@ -25,12 +28,15 @@
 #include "rig_config.h"
 
 #define RIG_LINK_RECONNECT_AFTER 3
+#define RIG_LINK_DRAIN_MAX 8 /* RTU: read windows at most after a timeout (a babbling line ends it) */
 
 typedef struct rig_link rig_link;
 
 typedef struct {
     uint32_t failed_requests;
     uint32_t reconnects;
+    uint32_t late_bytes_discarded; /* RTU: reads of a late reply discarded after a timeout */
+    uint32_t connects; /* successful connects (RTU: the port opened); a change = a new session with the module */
 } rig_link_stats;
 
 /* NULL (message in err) on a bad device or host; an unreachable module is not an error. */

@@ -4,7 +4,7 @@
  *
  *   leveler-plant-server --config host_sim/configs/thesis-900lb.ini
  *       [--address 127.0.0.1] [--port 0] [--port-file F] [--clock lockstep|realtime]
- *       [--max-seconds S]
+ *       [--max-seconds S] [--schedule FILE]
  *
  * Module map (0-based):
  *   input registers 0..3   ADC counts of height, P2, P1, P3 (plant_sensor_counts, 12-bit)
@@ -59,7 +59,7 @@ static void on_signal(int sig)
 }
 
 typedef struct {
-    const char *config, *address, *port_file;
+    const char *config, *address, *port_file, *schedule;
     int port;
     int lockstep;
     double max_seconds;
@@ -70,6 +70,7 @@ typedef struct {
     plant pl;
     plant_rng rng;
     sim_load_step steps[4];
+    sim_load_step *file_steps; /* --schedule: loads from a schedule file (its register columns are not served) */
     sim_schedule_cursor cursor;
     sim_stepper st;
     modbus_mapping_t *map;
@@ -124,7 +125,7 @@ static double mono_s(void)
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
 
-enum { OPT_CONFIG = 0x100, OPT_ADDRESS, OPT_PORT, OPT_PORT_FILE, OPT_CLOCK, OPT_MAX_SECONDS };
+enum { OPT_CONFIG = 0x100, OPT_ADDRESS, OPT_PORT, OPT_PORT_FILE, OPT_CLOCK, OPT_MAX_SECONDS, OPT_SCHEDULE };
 
 static const cli_option server_options_list[] = {
     {"config", OPT_CONFIG, "FILE", "the plant, sensors and scenario (the simulator's INI, docs/config-format.md)", 1},
@@ -135,12 +136,13 @@ static const cli_option server_options_list[] = {
      "lockstep: the plant advances when the client writes holding register 0\n"
      "(default); realtime: 10 ms per 10 ms of the monotonic clock", 0},
     {"max-seconds", OPT_MAX_SECONDS, "S", "stop after S seconds of wall time (a guard for tests; 0 = never)", 0},
+    {"schedule", OPT_SCHEDULE, "FILE", "loads over time (the simulator's schedule CSV) in place of the config's scenario", 0},
     {NULL, 0, NULL, NULL, 0},
 };
 
 static const cli_spec server_cli = {
     .prog = "leveler-plant-server",
-    .usage = "--config FILE [--address A] [--port P] [--port-file F]\n[--clock lockstep|realtime] [--max-seconds S]",
+    .usage = "--config FILE [--address A] [--port P] [--port-file F]\n[--clock lockstep|realtime] [--max-seconds S] [--schedule FILE]",
     .about = "The plant model served as a Modbus TCP analog-input module for leveler-rig (ends on SIGINT/SIGTERM).",
     .opts = server_options_list,
 };
@@ -152,6 +154,7 @@ static int server_option(void *user, int key, const char *v)
     case OPT_CONFIG: o->config = v; return 0;
     case OPT_ADDRESS: o->address = v; return 0;
     case OPT_PORT_FILE: o->port_file = v; return 0;
+    case OPT_SCHEDULE: o->schedule = v; return 0;
     case OPT_PORT: return cli_int(&server_cli, "port", v, 0, 65535, &o->port);
     case OPT_MAX_SECONDS: return cli_double(&server_cli, "max-seconds", v, 0.0, 1e9, &o->max_seconds);
     case OPT_CLOCK:
@@ -172,7 +175,7 @@ static int parse_args(int argc, char **argv, server_options *o)
 
 /* The plant at 10 ms: the first tick ran under the [initial] actuators, which
  * the coils now hold. 0, or the exit status after a message. */
-static int start_plant(served_plant *sp, const char *config)
+static int start_plant(served_plant *sp, const char *config, const char *schedule)
 {
     char err[512];
     if (plant_config_load(config, &sp->cfg, err, sizeof err) != 0) {
@@ -188,6 +191,13 @@ static int start_plant(served_plant *sp, const char *config)
     plant_rng_seed(&sp->rng, sp->cfg.sensors.noise_seed);
     double end_s;
     sp->cursor = (sim_schedule_cursor){sp->steps, sim_schedule_from_config(&sp->cfg, sp->steps, &end_s), 0};
+    size_t count = 0;
+    if (schedule && sim_schedule_load(schedule, &sp->file_steps, &count, err, sizeof err) != 0) {
+        fprintf(stderr, "leveler-plant-server: --schedule %s\n", err);
+        return 2;
+    }
+    if (schedule)
+        sp->cursor = (sim_schedule_cursor){sp->file_steps, count, 0}; /* the last load holds past its end */
     sp->st = (sim_stepper){.cfg = &sp->cfg, .plant = &sp->pl, .ops = &sim_nominal_plant,
                            .commands = coil_commands, .commands_user = sp->map,
                            .load = sim_load_from_schedule, .load_user = &sp->cursor, .initial_outputs = true};
@@ -325,6 +335,7 @@ static void serve(served_plant *sp, const server_options *o)
 
 static void close_server(served_plant *sp)
 {
+    free(sp->file_steps);
     for (int i = 0; i < MAX_CLIENTS; i++)
         if (sp->clients[i] >= 0)
             close(sp->clients[i]);
@@ -344,7 +355,7 @@ int main(int argc, char **argv)
     int rc = parse_args(argc, argv, &o);
     if (rc != CLI_CONTINUE)
         return rc;
-    rc = start_plant(&sp, o.config);
+    rc = start_plant(&sp, o.config, o.schedule);
     if (rc == 0)
         rc = open_server(&sp, &o);
     if (rc == 0)

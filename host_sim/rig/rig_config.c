@@ -68,6 +68,12 @@ void rig_config_defaults(rig_config *cfg)
     cfg->log_rotate_bytes = 0;
     cfg->log_keep_files = 5;
     cfg->log_load_n = NAN;
+    snprintf(cfg->mbaps_address, sizeof cfg->mbaps_address, "0.0.0.0");
+    cfg->mbaps_port = 802;
+    cfg->mbaps_write_role_count = 1;
+    snprintf(cfg->mbaps_write_roles[0], sizeof cfg->mbaps_write_roles[0], "Operator");
+    cfg->auto_clear_after_s = 0;
+    cfg->auto_clear_max_per_hour = 6;
 }
 
 typedef struct {
@@ -316,8 +322,16 @@ static int outputs_key(parse_state *st, rig_config *cfg, const char *section, co
         CHOICE_FIELD(cfg->outputs, rig_output_kind, "gpiod", "modbus");
     if (!strcmp(key, "consumer"))
         return parse_text(st, section, key, value, cfg->consumer, sizeof cfg->consumer);
-    if (!strcmp(key, "watchdog_ms"))
-        INT_FIELD(cfg->output_watchdog_ms, 0, 65535);
+    if (!strcmp(key, "watchdog_ms")) {
+        long long v;
+        if (!parse_int(st, section, key, value, 0, 65535, &v))
+            return 0;
+        if (v > 0 && v < RIG_WATCHDOG_MIN_MS)
+            return fail(st, section, key, "%lld ms is shorter than a module can honour (0 = off, or %d..65535)", v,
+                        RIG_WATCHDOG_MIN_MS);
+        cfg->output_watchdog_ms = (uint32_t)v;
+        return 1;
+    }
     if (!strcmp(key, "watchdog_register")) {
         st->seen_watchdog_register = true;
         INT_FIELD(cfg->output_watchdog_register, 0, 65535);
@@ -346,21 +360,25 @@ static int output_section(parse_state *st, rig_config *cfg, const char *section,
     return fail(st, section, key, "unknown output (allowed compressor, spring_valve, vent_valve, acc_valve, status_led)");
 }
 
-/* "a, b, c": each a numeric address (as [supervision] address). */
-static int parse_writers(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+/* "a, b, c" into items (RIG_MAX_WRITERS of 48 bytes): numeric addresses (as
+ * [supervision] address) when addresses, else names. */
+static int parse_list(parse_state *st, const char *section, const char *key, const char *value,
+                      char (*items)[48], uint32_t *count, bool addresses)
 {
     char list[RIG_TEXT_MAX * 4];
     snprintf(list, sizeof list, "%s", value);
-    cfg->writer_count = 0;
+    *count = 0;
     for (char *save = NULL, *tok = strtok_r(list, ", \t", &save); tok; tok = strtok_r(NULL, ", \t", &save)) {
-        if (cfg->writer_count == RIG_MAX_WRITERS)
-            return fail(st, section, key, "more than %d addresses", RIG_MAX_WRITERS);
-        if (!parse_address(st, section, key, tok, cfg->writers[cfg->writer_count], sizeof cfg->writers[0]))
+        if (*count == RIG_MAX_WRITERS)
+            return fail(st, section, key, "more than %d %s", RIG_MAX_WRITERS, addresses ? "addresses" : "names");
+        if (addresses && !parse_address(st, section, key, tok, items[*count], sizeof items[0]))
             return 0;
-        cfg->writer_count++;
+        if (!addresses && strlen(tok) >= sizeof items[0])
+            return fail(st, section, key, "'%s' longer than %zu bytes", tok, sizeof items[0] - 1);
+        if (!addresses)
+            snprintf(items[*count], sizeof items[0], "%s", tok);
+        (*count)++;
     }
-    if (cfg->writer_count == 0)
-        return fail(st, section, key, "empty (leave the key out to let every client write)");
     return 1;
 }
 
@@ -377,7 +395,9 @@ static int supervision_key(parse_state *st, rig_config *cfg, const char *section
     if (!strcmp(key, "read_only"))
         return parse_bool(st, section, key, value, &cfg->read_only);
     if (!strcmp(key, "writers"))
-        return parse_writers(st, cfg, section, key, value);
+        return parse_list(st, section, key, value, cfg->writers, &cfg->writer_count, true);
+    if (!strcmp(key, "write_socket"))
+        return parse_text(st, section, key, value, cfg->write_socket, sizeof cfg->write_socket);
     if (!strcmp(key, "idle_timeout_s")) {
         long long v;
         if (!parse_int(st, section, key, value, 1, 86400, &v))
@@ -407,6 +427,38 @@ static int log_key(parse_state *st, rig_config *cfg, const char *section, const 
     return fail(st, section, key, "unknown key");
 }
 
+
+/* [mbaps]: leveler-mbaps (TLS with client certificates, roles). */
+static int mbaps_key(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    static const struct {
+        const char *key;
+        size_t offset;
+    } paths[] = {{"port_file", offsetof(rig_config, mbaps_port_file)}, {"cert", offsetof(rig_config, mbaps_cert)},
+                 {"key", offsetof(rig_config, mbaps_key)},             {"ca", offsetof(rig_config, mbaps_ca)},
+                 {"crl", offsetof(rig_config, mbaps_crl)}};
+    for (size_t i = 0; i < sizeof paths / sizeof paths[0]; i++)
+        if (!strcmp(key, paths[i].key))
+            return parse_text(st, section, key, value, (char *)cfg + paths[i].offset, RIG_TEXT_MAX);
+    if (!strcmp(key, "address"))
+        return parse_address(st, section, key, value, cfg->mbaps_address, sizeof cfg->mbaps_address);
+    if (!strcmp(key, "port"))
+        INT_FIELD(cfg->mbaps_port, 0, 65535);
+    if (!strcmp(key, "write_roles"))
+        return parse_list(st, section, key, value, cfg->mbaps_write_roles, &cfg->mbaps_write_role_count, false);
+    return fail(st, section, key, "unknown key");
+}
+
+/* [faults]: the auto-clear of link faults (auto_clear.h). */
+static int faults_key(parse_state *st, rig_config *cfg, const char *section, const char *key, const char *value)
+{
+    if (!strcmp(key, "auto_clear_after_s"))
+        INT_FIELD(cfg->auto_clear_after_s, 0, 3600);
+    if (!strcmp(key, "auto_clear_max_per_hour"))
+        INT_FIELD(cfg->auto_clear_max_per_hour, 1, 60);
+    return fail(st, section, key, "unknown key (allowed auto_clear_after_s, auto_clear_max_per_hour)");
+}
+
 static int handler(void *user, const char *section, const char *key, const char *value)
 {
     parse_state *st = user;
@@ -424,7 +476,8 @@ static int handler(void *user, const char *section, const char *key, const char 
     } sections[] = {
         {"rig", false, rig_key},           {"sensors", false, sensors_key},         {"sensor.", true, sensor_section},
         {"outputs", false, outputs_key},   {"output.", true, output_section},       {"supervision", false, supervision_key},
-        {"log", false, log_key},
+        {"log", false, log_key},           {"faults", false, faults_key},
+        {"mbaps", false, mbaps_key},
     };
     for (size_t i = 0; i < sizeof sections / sizeof sections[0]; i++) {
         bool match = sections[i].prefix ? !strncmp(section, sections[i].name, strlen(sections[i].name))
@@ -490,9 +543,14 @@ static int check_whole(const char *path, const rig_config *cfg, bool seen_watchd
                  path);
         return -1;
     }
-    if (cfg->output_watchdog_ms > 0 && (cfg->outputs != RIG_OUTPUTS_MODBUS || !seen_watchdog_register)) {
-        snprintf(err, err_len, "%s: [outputs] watchdog_ms: needs backend = modbus and the module's watchdog_register",
-                 path);
+    if (cfg->write_socket[0] && cfg->writer_count > 0) {
+        snprintf(err, err_len, "%s: [supervision] writers, write_socket: one or the other (with write_socket only "
+                 "its clients write: a source address is no proof of who sent it)", path);
+        return -1;
+    }
+    /* gpiod lines have no module watchdog (the unit's ExecStopPost=--safe-outputs covers them): ignored there. */
+    if (cfg->output_watchdog_ms > 0 && cfg->outputs == RIG_OUTPUTS_MODBUS && !seen_watchdog_register) {
+        snprintf(err, err_len, "%s: [outputs] watchdog_ms: needs the module's watchdog_register", path);
         return -1;
     }
     return 0;

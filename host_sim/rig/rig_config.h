@@ -14,6 +14,10 @@
 
 #define RIG_TEXT_MAX 256
 #define RIG_MAX_WRITERS 16
+/* The shortest module watchdog the rig can feed: it re-sends the outputs every
+ * watchdog_ms / 4 (at least every 2 ticks at 100 ms), so one late tick or one
+ * failed request (timeout_ms) does not trip it; modules count in 10-100 ms steps. */
+#define RIG_WATCHDOG_MIN_MS 100
 
 typedef enum { RIG_CLOCK_MONOTONIC = 0, RIG_CLOCK_LOCKSTEP = 1 } rig_clock;
 typedef enum { RIG_TRANSPORT_RTU = 0, RIG_TRANSPORT_TCP = 1 } rig_transport;
@@ -75,11 +79,24 @@ typedef struct {
     uint32_t max_clients;
     uint32_t writer_count;            /* 0 = every client may write (unless read_only) */
     char writers[RIG_MAX_WRITERS][48]; /* numeric addresses allowed to write */
+    char write_socket[RIG_TEXT_MAX];  /* Unix socket whose clients may write (file permissions guard it);
+                                         when set, no TCP client writes (leveler-mbaps connects here) */
+
+    /* [mbaps]: leveler-mbaps, Modbus/TCP Security in front of write_socket */
+    char mbaps_address[RIG_TEXT_MAX];
+    uint16_t mbaps_port;              /* 0 = kernel's choice (tests), 802 by the specification */
+    char mbaps_port_file[RIG_TEXT_MAX];
+    char mbaps_cert[RIG_TEXT_MAX], mbaps_key[RIG_TEXT_MAX], mbaps_ca[RIG_TEXT_MAX], mbaps_crl[RIG_TEXT_MAX];
+    uint32_t mbaps_write_role_count;
+    char mbaps_write_roles[RIG_MAX_WRITERS][48]; /* role extension values that may write */
 
     char log_path[RIG_TEXT_MAX];      /* empty = no run log */
     uint64_t log_rotate_bytes;
     uint32_t log_keep_files;
     double log_load_n;                /* logged load when there is no load channel */
+
+    uint32_t auto_clear_after_s;      /* [faults]: link faults cleared after this long of valid sensors; 0 = off */
+    uint32_t auto_clear_max_per_hour; /* at most this many auto-clears in any hour */
 } rig_config;
 
 /* Defaults: see boards/linux-rig/rig.ini. */

@@ -21,10 +21,12 @@
  *
  * When the process cannot do that (SIGKILL, a crash, a hang), two watchdogs
  * outside it act: the output module's communication watchdog ([outputs]
- * watchdog_ms, written at start; the module drives its outputs safe when the
- * rig stops writing) and systemd's (WatchdogSec= in the unit: the tick loop
- * sends WATCHDOG=1; a silent rig is killed and restarted, and a start drives
- * every output safe first).
+ * watchdog_ms, armed at start and again whenever the module reconnects, read
+ * back; the module drives its outputs safe when the rig stops writing) and
+ * systemd's (WatchdogSec= in the unit: the tick loop sends WATCHDOG=1; a
+ * silent rig is killed and restarted, and a start drives every output safe
+ * first). Whatever ended the process, the unit's ExecStopPost= runs
+ * `leveler-rig --safe-outputs` (GPIO lines have no watchdog of their own).
  *
  * The run log never stops control: a row the disk refuses is dropped whole
  * (log_fault, log_rows_dropped in the register map) and SIGXFSZ is ignored,
@@ -45,6 +47,8 @@
 #include "leveler/app.h"
 #include "leveler/regmap.h"
 #include "leveler/regmap_addr.h"
+#include "leveler/status.h"
+#include "auto_clear.h"
 #include "output_backend.h"
 #include "rig_config.h"
 #include "rig_hal.h"
@@ -111,7 +115,12 @@ typedef struct {
     uint64_t ticks, overruns;
     long long notify_every_ns; /* systemd watchdog: 0 = not asked for */
     long long next_notify_ns;
+    rig_auto_clear auto_clear;
+    long long next_output_error_ns; /* stderr during an outage: one line per RIG_SAY_EVERY_NS */
+    unsigned output_errors_unsaid;
 } rig;
+
+#define RIG_SAY_EVERY_NS (10 * 1000 * NS_PER_MS)
 
 static void log_tick(rig *r, const bool out[HAL_OUT_COUNT])
 {
@@ -160,17 +169,18 @@ static void log_tick(rig *r, const bool out[HAL_OUT_COUNT])
     leveler_app_report_log(st.fault, st.rows_dropped > UINT32_MAX ? UINT32_MAX : (uint32_t)st.rows_dropped);
 }
 
-enum { OPT_CONFIG = 0x100, OPT_CHECK };
+enum { OPT_CONFIG = 0x100, OPT_CHECK, OPT_SAFE_OUTPUTS };
 
 static const cli_option rig_options[] = {
     {"config", OPT_CONFIG, "FILE", "the rig's INI file (boards/linux-rig/rig.ini)", 1},
     {"check", OPT_CHECK, NULL, "parse the config, print the result and exit", 0},
+    {"safe-outputs", OPT_SAFE_OUTPUTS, NULL, "drive every output safe (de-energised) and exit: the unit's ExecStopPost=", 0},
     {NULL, 0, NULL, NULL, 0},
 };
 
 static const cli_spec rig_cli = {
     .prog = "leveler-rig",
-    .usage = "--config FILE [--check]",
+    .usage = "--config FILE [--check | --safe-outputs]",
     .about = "The unchanged firmware on a Linux computer driving a real rig (SIGINT/SIGTERM: outputs safe, exit 0).",
     .opts = rig_options,
 };
@@ -178,6 +188,7 @@ static const cli_spec rig_cli = {
 typedef struct {
     const char *config_path;
     bool check_only;
+    bool safe_only;
 } rig_args;
 
 static int rig_option(void *user, int key, const char *v)
@@ -185,8 +196,10 @@ static int rig_option(void *user, int key, const char *v)
     rig_args *a = user;
     if (key == OPT_CONFIG)
         a->config_path = v;
-    else
+    else if (key == OPT_CHECK)
         a->check_only = true;
+    else
+        a->safe_only = true;
     return 0;
 }
 
@@ -234,7 +247,8 @@ static int open_supervision_and_log(rig *r, char *err, size_t err_len)
     }
     if (cfg->log_path[0]) {
         runlog_options lo = {.path = cfg->log_path, .config_name = cfg->name, .source = "rig",
-                             .rotate_bytes = (size_t)cfg->log_rotate_bytes, .keep_files = cfg->log_keep_files};
+                             .rotate_bytes = (size_t)cfg->log_rotate_bytes, .keep_files = cfg->log_keep_files,
+                             .keep_previous = 1};
         char lerr[400];
         r->log = runlog_open(&lo, lerr, sizeof lerr);
         if (r->log == NULL) {
@@ -326,6 +340,50 @@ static void wait_for_tick(rig *r, long long *deadline)
     }
 }
 
+/* A failed output write, said at once and then at most every 10 s with the
+ * count of those not said: an outage is a few lines, not one per tick. */
+static void say_output_error(rig *r, const char *err)
+{
+    long long now = mono_ns();
+    if (now < r->next_output_error_ns) {
+        r->output_errors_unsaid++;
+        return;
+    }
+    if (r->output_errors_unsaid > 0)
+        fprintf(stderr, "leveler-rig: %s (and %u more failed output writes in the last %lld s)\n", err,
+                r->output_errors_unsaid, RIG_SAY_EVERY_NS / 1000 / NS_PER_MS);
+    else
+        fprintf(stderr, "leveler-rig: %s\n", err);
+    r->output_errors_unsaid = 0;
+    r->next_output_error_ns = now + RIG_SAY_EVERY_NS;
+}
+
+/* [faults] auto-clear of link faults (auto_clear.h), after the tick. */
+static void auto_clear_link_faults(rig *r, bool scan_failed)
+{
+    const leveler_status *st = leveler_app_status();
+    uint16_t latched = st->latched_fault_bits;
+    switch (rig_auto_clear_step(&r->auto_clear, hal_now_ms(), latched, st->sensors_valid, scan_failed)) {
+    case RIG_AUTO_CLEAR_NOW: {
+        const uint16_t one = 1; /* the clear_faults coil, as an operator's write */
+        (void)leveler_regs_write(LEVELER_TABLE_COIL, LEVELER_COIL_CLEAR_FAULTS, 1, &one, NULL);
+        leveler_app_report_link_faults_auto_cleared(r->auto_clear.count);
+        fprintf(stderr,
+                "leveler-rig: link faults 0x%04x cleared after %u s of valid sensors (auto-clear %u, %u in the last "
+                "hour of at most %u)\n",
+                latched, r->cfg.auto_clear_after_s, r->auto_clear.count, r->auto_clear.recent,
+                r->auto_clear.max_per_hour);
+        break;
+    }
+    case RIG_AUTO_CLEAR_LIMIT:
+        fprintf(stderr, "leveler-rig: link faults 0x%04x stay latched: %u auto-clears in the last hour already "
+                        "(clear_faults to go on)\n", latched, r->auto_clear.max_per_hour);
+        break;
+    case RIG_AUTO_CLEAR_NO:
+        break;
+    }
+}
+
 static void rig_loop(rig *r)
 {
     bool out[HAL_OUT_COUNT], applied[HAL_OUT_COUNT];
@@ -333,19 +391,23 @@ static void rig_loop(rig *r)
     char err[512];
     const uint64_t refresh = refresh_ticks(&r->cfg);
     long long deadline = mono_ns() + TICK_NS;
+    rig_auto_clear_init(&r->auto_clear, r->cfg.auto_clear_after_s * 1000u, r->cfg.auto_clear_max_per_hour);
     while (!stop_requested) {
+        uint32_t failed_before = rig_sensors_failed_scans(r->sensors);
         rig_sensors_scan(r->sensors);
+        bool scan_failed = rig_sensors_failed_scans(r->sensors) != failed_before;
         if (r->cfg.run_seconds > 0 && hal_now_ms() > r->cfg.run_seconds * 1000.0)
             break;
         leveler_app_report_sensor_scans_failed(rig_sensors_failed_scans(r->sensors));
         leveler_app_tick();
+        auto_clear_link_faults(r, scan_failed);
         notify_alive(r);
         rig_hal_wanted_outputs(out);
         if (!have_applied || memcmp(out, applied, sizeof out) != 0 || r->ticks % refresh == 0) {
             /* A failed write is tried again next tick. */
             have_applied = r->outputs.apply(r->outputs.impl, out, err, sizeof err) == 0;
             if (!have_applied)
-                fprintf(stderr, "leveler-rig: %s\n", err);
+                say_output_error(r, err);
             memcpy(applied, out, sizeof out);
         }
         if (r->log)
@@ -368,7 +430,7 @@ static int rig_close(rig *r)
         rc = 1;
     }
     uint32_t failed_scans = r->sensors ? rig_sensors_failed_scans(r->sensors) : 0;
-    rig_link_stats ls = r->link ? rig_link_get_stats(r->link) : (rig_link_stats){0, 0};
+    rig_link_stats ls = r->link ? rig_link_get_stats(r->link) : (rig_link_stats){0};
     rig_supervision_close(r->sv);
     rig_sensors_close(r->sensors);
     rig_link_close(r->link);
@@ -378,6 +440,32 @@ static int rig_close(rig *r)
             (unsigned long long)r->ticks, (unsigned long long)r->overruns, failed_scans, ls.failed_requests,
             ls.reconnects, ls_log.rows_written, ls_log.rows_dropped);
     return rc;
+}
+
+/* --safe-outputs: after the service's process is gone (ExecStopPost=, also
+ * after a SIGKILL, a crash, a watchdog kill or a failed ExecStartPre=), the
+ * lines are free: take them, drive every output de-energised, release them.
+ * 0 when the outputs were driven safe, 1 otherwise. */
+static int safe_outputs(rig *r)
+{
+    char err[512];
+    int rc;
+    if (r->cfg.outputs == RIG_OUTPUTS_GPIOD) {
+        rc = rig_gpiod_open(&r->cfg, &r->outputs, err, sizeof err); /* requested de-energised */
+    } else {
+        r->cfg.output_watchdog_ms = 0; /* coils only: nothing is left to feed it */
+        r->link = rig_link_open(&r->cfg, err, sizeof err);
+        rc = r->link ? rig_modbus_outputs_open(&r->cfg, r->link, &r->outputs, err, sizeof err) : -1;
+    }
+    if (rc == 0)
+        r->outputs.close(r->outputs.impl); /* every output off, then released */
+    rig_link_close(r->link);
+    if (rc != 0) {
+        fprintf(stderr, "leveler-rig: --safe-outputs: %s: %s\n", r->config_path, err);
+        return 1;
+    }
+    fprintf(stderr, "leveler-rig: --safe-outputs: every output driven safe\n");
+    return 0;
 }
 
 int main(int argc, char **argv)
@@ -398,6 +486,8 @@ int main(int argc, char **argv)
         printf("%s: ok\n", r.config_path);
         return 0;
     }
+    if (args.safe_only)
+        return safe_outputs(&r);
     install_signals();
     if (rig_open(&r) != 0) {
         rig_close(&r);

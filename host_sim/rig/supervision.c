@@ -13,6 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -36,6 +38,7 @@ struct rig_supervision {
     modbus_t *ctx;               /* reply builder; its socket is set per client */
     modbus_mapping_t *mapping;   /* refreshed from the register map before each read */
     int listen_fd;
+    int unix_fd;                 /* [supervision] write_socket, or -1 */
     uint16_t port;
     bool read_only;
     uint32_t idle_timeout_ms;
@@ -86,6 +89,35 @@ static int listen_on(const char *address, uint16_t port, uint16_t *bound_port, c
     return fd;
 }
 
+/* [supervision] write_socket: a Unix socket, owner and group only (0660), so
+ * only processes with those rights (leveler-mbaps) can connect and write; a
+ * socket left by an earlier run is replaced, any other file is an error. */
+static int listen_on_unix(const char *path, char *err, size_t err_len)
+{
+    struct sockaddr_un sa = {.sun_family = AF_UNIX};
+    struct stat st;
+    if (strlen(path) >= sizeof sa.sun_path) {
+        snprintf(err, err_len, "supervision: [supervision] write_socket: '%s' longer than %zu bytes", path,
+                 sizeof sa.sun_path - 1);
+        return -1;
+    }
+    snprintf(sa.sun_path, sizeof sa.sun_path, "%s", path);
+    if (lstat(path, &st) == 0 && S_ISSOCK(st.st_mode))
+        unlink(path);
+    int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+    mode_t old = umask(0117);
+    int rc = fd < 0 ? -1 : bind(fd, (struct sockaddr *)&sa, sizeof sa);
+    umask(old);
+    if (rc != 0 || listen(fd, 16) != 0) {
+        snprintf(err, err_len, "supervision: [supervision] write_socket: cannot listen on %s: %s", path,
+                 strerror(errno));
+        if (fd >= 0)
+            close(fd);
+        return -1;
+    }
+    return fd;
+}
+
 rig_supervision *rig_supervision_open(const rig_config *cfg, char *err, size_t err_len)
 {
     rig_supervision *sv = calloc(1, sizeof *sv);
@@ -107,13 +139,16 @@ rig_supervision *rig_supervision_open(const rig_config *cfg, char *err, size_t e
                                      leveler_regs_table_size(LEVELER_TABLE_HOLDING_REGISTER),
                                      leveler_regs_table_size(LEVELER_TABLE_INPUT_REGISTER));
     sv->listen_fd = -1;
+    sv->unix_fd = -1;
     if (sv->clients == NULL || sv->ctx == NULL || sv->mapping == NULL) {
         snprintf(err, err_len, "supervision: out of memory");
         rig_supervision_close(sv);
         return NULL;
     }
     sv->listen_fd = listen_on(cfg->supervision_address, cfg->supervision_port, &sv->port, err, err_len);
-    if (sv->listen_fd < 0) {
+    if (sv->listen_fd >= 0 && cfg->write_socket[0])
+        sv->unix_fd = listen_on_unix(cfg->write_socket, err, err_len);
+    if (sv->listen_fd < 0 || (cfg->write_socket[0] && sv->unix_fd < 0)) {
         rig_supervision_close(sv);
         return NULL;
     }
@@ -179,41 +214,57 @@ static bool has_frame(const client *c)
 /* A free slot, or the slot of a client that may make room: one that never
  * completed a request and is older than NEW_CLIENT_GRACE_MS (oldest first),
  * else one with no complete request for request_timeout_ms (longest idle
- * first). NULL: every slot is busy; new connections wait in the backlog. */
-static client *slot_for_new(rig_supervision *sv, uint64_t now)
+ * first), else (every slot held by clients that keep polling) the least
+ * recently active one with nothing buffered, quiet for NEW_CLIENT_GRACE_MS:
+ * it gives way, so a fifth poller is not shut out by four. NULL: every slot
+ * is mid-request; new connections wait in the backlog. */
+static client *slot_for_new(rig_supervision *sv, uint64_t now, bool *least_active)
 {
-    client *victim = NULL;
+    client *victim = NULL, *fallback = NULL;
+    *least_active = false;
     for (uint32_t i = 0; i < sv->max_clients; i++) {
         client *c = &sv->clients[i];
         if (c->fd < 0)
             return c;
         uint64_t quiet = now - c->last_request_ms;
-        if (has_frame(c) || quiet < (c->served ? sv->request_timeout_ms : NEW_CLIENT_GRACE_MS))
+        if (has_frame(c) || quiet < NEW_CLIENT_GRACE_MS)
+            continue;
+        if (c->len == 0 && (fallback == NULL || c->last_request_ms < fallback->last_request_ms))
+            fallback = c;
+        if (quiet < (c->served ? sv->request_timeout_ms : NEW_CLIENT_GRACE_MS))
             continue;
         if (victim == NULL || (c->served == 0 && victim->served != 0) ||
             ((c->served == 0) == (victim->served == 0) && c->last_request_ms < victim->last_request_ms))
             victim = c;
+    }
+    if (victim == NULL && fallback != NULL) {
+        *least_active = true;
+        return fallback;
     }
     return victim;
 }
 
 /* Accepts while there is room (see slot_for_new); the rest stays in the
  * kernel's backlog, in order, for the next call. */
-static void accept_clients(rig_supervision *sv)
+static void accept_clients(rig_supervision *sv, int listen_fd)
 {
     for (int n = 0; n < 8; n++) {
         uint64_t now = now_ms();
-        client *slot = slot_for_new(sv, now);
+        bool least_active;
+        client *slot = slot_for_new(sv, now, &least_active);
         if (slot == NULL)
             return;
-        int fd = accept4(sv->listen_fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
+        int fd = accept4(listen_fd, NULL, NULL, SOCK_NONBLOCK | SOCK_CLOEXEC);
         if (fd < 0)
             return;
         if (slot->fd >= 0) {
             drop(slot);
             sv->stats.evicted++;
+            sv->stats.evicted_active += least_active;
         }
-        *slot = (client){.fd = fd, .last_request_ms = now, .may_write = peer_may_write(sv, fd)};
+        /* With a write_socket only its clients write; else [supervision] writers decides. */
+        bool may_write = listen_fd == sv->unix_fd || (sv->unix_fd < 0 && peer_may_write(sv, fd));
+        *slot = (client){.fd = fd, .last_request_ms = now, .may_write = may_write};
         sv->stats.accepted++;
     }
 }
@@ -421,12 +472,15 @@ static void drop_late_clients(rig_supervision *sv)
 
 void rig_supervision_serve(rig_supervision *sv, int timeout_ms)
 {
-    struct pollfd fds[65];
-    int owner[65];
+    struct pollfd fds[66];
+    int owner[66];
     int n = 0;
     bool buffered = false; /* a client has whole frames waiting: do not sleep */
     /* Without room, the listening socket is left out: no busy loop on a backlog. */
-    fds[n] = (struct pollfd){.fd = slot_for_new(sv, now_ms()) ? sv->listen_fd : -1, .events = POLLIN};
+    bool least_active, room = slot_for_new(sv, now_ms(), &least_active) != NULL;
+    fds[n] = (struct pollfd){.fd = room ? sv->listen_fd : -1, .events = POLLIN};
+    owner[n++] = -1;
+    fds[n] = (struct pollfd){.fd = room ? sv->unix_fd : -1, .events = POLLIN};
     owner[n++] = -1;
     for (uint32_t i = 0; i < sv->max_clients; i++) {
         if (sv->clients[i].fd >= 0) {
@@ -436,7 +490,7 @@ void rig_supervision_serve(rig_supervision *sv, int timeout_ms)
         }
     }
     int ready = poll(fds, (nfds_t)n, buffered || timeout_ms < 0 ? 0 : timeout_ms);
-    for (int k = 1; k < n; k++) {
+    for (int k = 2; k < n; k++) {
         client *c = &sv->clients[owner[k]];
         short ev = ready > 0 ? fds[k].revents : 0;
         if (ev == 0 && !has_frame(c))
@@ -444,8 +498,10 @@ void rig_supervision_serve(rig_supervision *sv, int timeout_ms)
         if ((ev & (POLLERR | POLLNVAL)) || service_client(sv, c, (ev & (POLLIN | POLLHUP)) != 0) < 0)
             drop(c);
     }
+    if (ready > 0 && (fds[1].revents & POLLIN))
+        accept_clients(sv, sv->unix_fd);
     if (ready > 0 && (fds[0].revents & POLLIN))
-        accept_clients(sv);
+        accept_clients(sv, sv->listen_fd);
     drop_late_clients(sv);
 }
 
@@ -458,6 +514,10 @@ void rig_supervision_close(rig_supervision *sv)
             drop(&sv->clients[i]);
     if (sv->listen_fd >= 0)
         close(sv->listen_fd);
+    if (sv->unix_fd >= 0) {
+        close(sv->unix_fd);
+        unlink(sv->cfg->write_socket);
+    }
     if (sv->mapping)
         modbus_mapping_free(sv->mapping);
     if (sv->ctx)

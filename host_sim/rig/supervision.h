@@ -11,6 +11,10 @@
  *   exception 01 (ILLEGAL FUNCTION): the server does not offer writing.
  * - Function codes other than 01-06, 15, 16: exception 01.
  * - writers: only clients from these addresses may write; others get exception 01.
+ * - write_socket: a Unix socket (mode 0660) whose clients may write; with it
+ *   no TCP client writes, whatever its address (another local process can
+ *   take any loopback address; it cannot pass the socket's permissions).
+ *   leveler-mbaps connects here after checking the client certificate's role.
  * - A request must arrive whole within request_timeout_ms of its first byte
  *   (slow clients are dropped); a client with no complete request for
  *   idle_timeout_ms is dropped (single bytes do not keep it); so is one whose
@@ -18,9 +22,11 @@
  *   2..254, function code 0 or 0x80).
  * - All slots taken: a new connection takes the slot of a client that has
  *   not completed a request within 20 ms of connecting (oldest first), else
- *   of one with no complete request for request_timeout_ms; with no such
- *   slot it waits in the kernel's backlog, in order. So idle or slow
- *   connections cannot shut out a client that sends its request at once.
+ *   of one with no complete request for request_timeout_ms, else of the
+ *   least recently active client (nothing buffered, quiet for 20 ms): it
+ *   gives way. Only while every client is mid-request does a new connection
+ *   wait in the kernel's backlog, in order. So neither idle or slow
+ *   connections nor clients that keep polling can shut out another.
  * - Every whole request of a segment is answered (pipelining), at most 8 per
  *   client per call for fairness; the rest on the next call, without waiting
  *   for new bytes.
@@ -39,6 +45,7 @@ typedef struct rig_supervision rig_supervision;
 typedef struct {
     uint32_t accepted;
     uint32_t evicted;        /* idle or slow clients dropped to make room for a new one */
+    uint32_t evicted_active; /* of those, polling clients that gave way as the least recently active */
     uint32_t dropped_idle;
     uint32_t dropped_slow;   /* a request not whole within request_timeout_ms */
     uint32_t refused_writes; /* writes from an address not in [supervision] writers */

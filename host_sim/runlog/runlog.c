@@ -31,6 +31,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #define RUNLOG_LINE_MAX 512
@@ -130,6 +131,44 @@ static int numbered_path(char *buf, size_t cap, const char *path, unsigned n)
     return (len < 0 || (size_t)len >= cap) ? -1 : 0;
 }
 
+/* Drops path.keep, shifts path.k to path.(k+1) for k = keep-1..1 and leaves
+ * "path.1" in to (from, to: cap bytes each), ready for path to become path.1. */
+static int shift_numbered(const char *path, unsigned keep, char *from, char *to, size_t cap)
+{
+    numbered_path(to, cap, path, keep);
+    if (unlink(to) != 0 && errno != ENOENT)
+        return -1;
+    for (unsigned k = keep - 1; k >= 1; k--) {
+        numbered_path(from, cap, path, k);
+        numbered_path(to, cap, path, k + 1);
+        if (rename(from, to) != 0 && errno != ENOENT)
+            return -1;
+    }
+    numbered_path(to, cap, path, 1);
+    return 0;
+}
+
+/* keep_previous: a non-empty path left by an earlier run (a crash, a
+ * restart by systemd) becomes path.1 as at a rotation (at least one kept), so
+ * a start never destroys the log of the run before it. */
+static int keep_previous_run(const runlog *log)
+{
+    struct stat st;
+    if (stat(log->path, &st) != 0)
+        return errno == ENOENT ? 0 : -1;
+    if (!S_ISREG(st.st_mode) || st.st_size == 0)
+        return 0;
+    size_t cap = strlen(log->path) + 16;
+    char *from = malloc(cap), *to = malloc(cap);
+    int rc = from && to && shift_numbered(log->path, log->keep_files > 0 ? log->keep_files : 1, from, to, cap) == 0 &&
+                     rename(log->path, to) == 0
+                 ? 0
+                 : -1;
+    free(from);
+    free(to);
+    return rc;
+}
+
 /* Rotation keeps path in place at every moment, with whole lines and at
  * least one row: the next file (header + the line that did not fit) is
  * written as path.tmp, the full one is linked to path.1 (older ones shifted
@@ -147,21 +186,9 @@ static int rotate(runlog *log, const char *line, size_t len)
     fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_APPEND | O_CLOEXEC, 0666);
     if (fd < 0 || write_all(fd, log->header, log->header_len) != 0 || write_all(fd, line, len) != 0)
         goto out;
-    if (log->keep_files > 0) {
-        /* Drop the oldest, shift each one up by one, then path.1 = path. */
-        numbered_path(to, cap, log->path, log->keep_files);
-        if (unlink(to) != 0 && errno != ENOENT)
-            goto out;
-        for (unsigned k = log->keep_files - 1; k >= 1; k--) {
-            numbered_path(from, cap, log->path, k);
-            numbered_path(to, cap, log->path, k + 1);
-            if (rename(from, to) != 0 && errno != ENOENT)
-                goto out;
-        }
-        numbered_path(to, cap, log->path, 1);
-        if (link(log->path, to) != 0)
-            goto out;
-    }
+    if (log->keep_files > 0 && (shift_numbered(log->path, log->keep_files, from, to, cap) != 0 ||
+                                link(log->path, to) != 0))
+        goto out;
     if (rename(tmp, log->path) != 0)
         goto out;
     close(log->fd);
@@ -229,7 +256,7 @@ runlog *runlog_open(const runlog_options *options, char *err, size_t err_len)
         }
         return log;
     }
-    if (open_fresh(log) != 0) {
+    if ((options->keep_previous && keep_previous_run(log) != 0) || open_fresh(log) != 0) {
         snprintf(err, err_len, "runlog: %s: %s", options->path, strerror(errno));
         if (log->fd >= 0)
             close(log->fd);

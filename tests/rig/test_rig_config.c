@@ -56,7 +56,12 @@ static void example_config_parses(void **state)
     /* 4-20 mA line: raw 2000 -> 0 counts, 10000 -> 4095, midway -> 2048 (rounded) */
     assert_true(cfg.channel[HAL_ADC_HEIGHT].enabled);
     assert_int_equal(cfg.channel[HAL_ADC_HEIGHT].raw_lo, 2000);
+    /* Issue 23: the module watchdog is on out of the box. */
+    assert_int_equal(cfg.output_watchdog_ms, 200);
+    assert_int_equal(cfg.auto_clear_after_s, 10);
+    assert_int_equal(cfg.auto_clear_max_per_hour, 6);
 }
+
 
 static void expect_error(const char *text, const char *want)
 {
@@ -143,6 +148,27 @@ static void hardening_errors(void **state)
     assert_int_equal(rig_parse_address("127.1", out, sizeof out), -1);
 }
 
+/* Issue 23: a watchdog no module can honour (it trips between the rig's
+ * writes) is refused with file:line; 0 (off) and 100 ms are accepted. */
+static void watchdog_bounded(void **state)
+{
+    (void)state;
+    expect_error("[outputs]\nbackend = modbus\nwatchdog_register = 2\nwatchdog_ms = 5\n" OUTPUTS,
+                 ":4: [outputs] watchdog_ms: 5 ms is shorter than a module can honour (0 = off, or 100..65535)");
+    expect_error("[outputs]\nbackend = modbus\nwatchdog_ms = 10\nwatchdog_register = 2\n" OUTPUTS,
+                 ":3: [outputs] watchdog_ms: 10 ms is shorter");
+    expect_error("[outputs]\nbackend = modbus\nwatchdog_ms = 99\nwatchdog_register = 2\n" OUTPUTS,
+                 ":3: [outputs] watchdog_ms: 99 ms is shorter");
+    rig_config cfg;
+    char err[512];
+    assert_int_equal(load_text("[outputs]\nbackend = modbus\nwatchdog_ms = 100\nwatchdog_register = 2\n" OUTPUTS,
+                               &cfg, err, sizeof err), 0);
+    assert_int_equal(cfg.output_watchdog_ms, 100);
+    assert_int_equal(load_text("[outputs]\nbackend = modbus\nwatchdog_ms = 0\n" OUTPUTS, &cfg, err, sizeof err), 0);
+    assert_int_equal(cfg.auto_clear_after_s, 0); /* off unless configured */
+    expect_error(OUTPUTS "[faults]\nauto_clear_max_per_hour = 0\n", ":12: [faults] auto_clear_max_per_hour:");
+}
+
 static void missing_file_is_named(void **state)
 {
     (void)state;
@@ -165,6 +191,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(errors_name_file_line_key_and_range),
         cmocka_unit_test(whole_file_checks),
         cmocka_unit_test(hardening_errors),
+        cmocka_unit_test(watchdog_bounded),
         cmocka_unit_test(missing_file_is_named),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -124,6 +124,45 @@ static void writes_header_and_rows_with_empty_cells(void **state)
     free(text);
 }
 
+/* Issue 23: a restart (keep_previous, the rig) keeps the earlier run whole
+ * as path.1 and shifts older ones as a rotation does; without it (the
+ * simulator) the path is started again. */
+static void restart_keeps_the_previous_run(void **state)
+{
+    (void)state;
+    char path[300], err[200], name[320];
+    snprintf(path, sizeof path, "%s/restart.csv", dir);
+    for (int run = 0; run < 3; run++) {
+        runlog_options o = {.path = path, .config_name = "c", .source = "rig", .keep_files = 5, .keep_previous = 1};
+        runlog *log = runlog_open(&o, err, sizeof err);
+        assert_non_null(log);
+        for (int i = 0; i <= run; i++) { /* run k writes k + 1 rows */
+            runlog_row r = sample_row(i * 0.01);
+            assert_int_equal(runlog_write(log, &r), 0);
+        }
+        assert_int_equal(runlog_close(log), 0);
+    }
+    for (int k = 0; k < 3; k++) { /* path: the last run (3 rows), path.1: 2 rows, path.2: 1 row */
+        if (k == 0)
+            snprintf(name, sizeof name, "%s", path);
+        else
+            snprintf(name, sizeof name, "%s.%d", path, k);
+        char *text = slurp(name, NULL);
+        assert_non_null(text);
+        assert_int_equal(check_complete_lines(text, strlen(text)), (size_t)(3 - k));
+        free(text);
+    }
+    runlog_options fresh = {.path = path, .config_name = "c", .source = "sim"};
+    runlog *log = runlog_open(&fresh, err, sizeof err);
+    assert_non_null(log);
+    assert_int_equal(runlog_close(log), 0);
+    char *text = slurp(path, NULL);
+    assert_int_equal(check_complete_lines(text, strlen(text)), 0);
+    free(text);
+    snprintf(name, sizeof name, "%s.3", path);
+    assert_int_equal(access(name, F_OK), -1);
+}
+
 static void open_failure_names_the_path(void **state)
 {
     (void)state;
@@ -385,6 +424,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(writes_header_and_rows_with_empty_cells),
         cmocka_unit_test(open_failure_names_the_path),
+        cmocka_unit_test(restart_keeps_the_previous_run),
         cmocka_unit_test(rotates_by_size_and_keeps_n_files),
         cmocka_unit_test(sigterm_never_tears_a_line),
         cmocka_unit_test(dev_null_is_a_log),

@@ -31,5 +31,6 @@ void leveler_app_report_clock_fault(bool hse_failed);  /* board: fell back to HS
 void leveler_app_report_reset_cause(bool watchdog);     /* board: the last reset came from the watchdog */
 void leveler_app_report_log(bool fault, uint32_t rows_dropped); /* rig: run-log health */
 void leveler_app_report_sensor_scans_failed(uint32_t failed);   /* rig: sensor-module link health */
+void leveler_app_report_link_faults_auto_cleared(uint32_t count); /* rig: [faults] auto-clears so far */
 
 #endif /* LEVELER_APP_H */

@@ -58,6 +58,7 @@ typedef struct {
     uint16_t raw_counts[HAL_ADC_COUNT];
     uint32_t log_rows_dropped; /* Linux rig: run-log rows not written */
     uint32_t sensor_scans_failed; /* Linux rig: module scans without a valid reply */
+    uint32_t link_faults_auto_cleared; /* Linux rig: link-outage sensor faults cleared by [faults] auto-clear */
     uint16_t alg3_phase; /* leveler_alg3_phase */
     uint16_t alg3_moves;
     bool compressor_on;

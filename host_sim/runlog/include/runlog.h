@@ -41,6 +41,8 @@ typedef struct {
     size_t rotate_bytes;      /* 0 = never rotate; else start path.1, path.2 ... past this size */
     unsigned keep_files;      /* rotated files kept (oldest removed) */
     int buffered;             /* 1: whole lines collected and written together, no fsync (the simulator) */
+    int keep_previous;        /* 1: an existing non-empty path is kept as path.1 (rotation's shift), never
+                                 truncated (the rig: a restart after a crash keeps the failed run's log) */
 } runlog_options;
 
 typedef struct runlog runlog;

@@ -66,11 +66,13 @@ def u32(regs) -> int:
 class Plant:
     """leveler-plant-server: the plant served as a Modbus TCP I/O module."""
 
-    def __init__(self, tmp: Path, config=STEADY_CONFIG, clock="realtime"):
+    def __init__(self, tmp: Path, config=STEADY_CONFIG, clock="realtime", port=0):
+        """port: 0 = the kernel's choice; a restarted module takes its old port again."""
         self.tmp = tmp
         port_file = tmp / "plant.port"
-        self.out = open(tmp / "plant.out", "w")
-        self.proc = subprocess.Popen([PLANT_SERVER, "--config", str(config), "--port", "0", "--port-file",
+        port_file.unlink(missing_ok=True)
+        self.out = open(tmp / "plant.out", "a")
+        self.proc = subprocess.Popen([PLANT_SERVER, "--config", str(config), "--port", str(port), "--port-file",
                                       str(port_file), "--clock", clock, "--max-seconds", "120"],
                                      stdout=self.out, stderr=subprocess.STDOUT)
         self.port = read_port(port_file, self.proc, output=tmp / "plant.out")

@@ -1,10 +1,12 @@
-"""Item 9 of issue 13: Modbus/TCP Security in front of the supervision port.
-The shipped stunnel config (boards/linux-rig/stunnel-modbus-security.conf)
-runs with test certificates and loopback ports; pymodbus's TLS client (MBAP
-over TLS, as the specification says) with a certificate from the plant CA
-reads and writes through it; without a certificate, or with one from another
-CA, nothing gets through; the rig's writers allowlist lets only the TLS side
-(stunnel connects from 127.0.0.2) write, a plain client on 127.0.0.1 reads."""
+"""Item 9 of issue 13, item 3 of issue 23: Modbus/TCP Security in front of
+the supervision port. The shipped stunnel config
+(boards/linux-rig/stunnel-modbus-security.conf) runs with test certificates,
+its CRL and loopback ports; pymodbus's TLS client (MBAP over TLS, as the
+specification says) with a certificate from the plant CA reads through it;
+without a certificate, with one from another CA or with a revoked one,
+nothing gets through. stunnel cannot see a certificate's role, so with the
+rig's write_socket set nothing that comes over TCP writes (roles:
+test_mbaps_roles.py); a plain client reads."""
 
 import socket
 import ssl
@@ -37,6 +39,16 @@ def make_ca(d, name):
             f"{name}.key", "-out", f"{name}.pem", "-days", "2", "-subj", f"/CN={name}", cwd=d)
 
 
+def revoke_and_publish_crl(pki, name):
+    (pki / "index.txt").write_text("")
+    (pki / "crlnumber").write_text("01\n")
+    (pki / "ca.cnf").write_text("[ca]\ndefault_ca = plant\n[plant]\ndatabase = index.txt\ncrlnumber = crlnumber\n"
+                                "default_md = sha256\ndefault_crl_days = 2\n")
+    ca = ["-config", "ca.cnf", "-keyfile", "ca.key", "-cert", "ca.pem"]
+    openssl("ca", *ca, "-revoke", f"{name}.pem", cwd=pki)
+    openssl("ca", *ca, "-gencrl", "-out", "crl.pem", cwd=pki)
+
+
 def free_port():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -52,10 +64,12 @@ def tls(tmp_path, plant):
     make_cert(pki, "server", "ca", "subjectAltName=IP:127.0.0.1\nextendedKeyUsage=serverAuth\n")
     make_cert(pki, "operator", "ca", "extendedKeyUsage=clientAuth\n")
     make_cert(pki, "intruder", "rogue-ca", "extendedKeyUsage=clientAuth\n")
-    rig = rp.Rig(tmp_path, plant, overrides={"supervision": {"writers": "127.0.0.2"}}).start()
+    make_cert(pki, "revoked", "ca", "extendedKeyUsage=clientAuth\n")
+    revoke_and_publish_crl(pki, "revoked")
+    rig = rp.Rig(tmp_path, plant, overrides={"supervision": {"write_socket": tmp_path / "sv.sock"}}).start()
     port = free_port()
     conf = SHIPPED.read_text()
-    for old, new in (("0.0.0.0:802", f"127.0.0.1:{port}"), ("127.0.0.1:1502", f"127.0.0.1:{rig.port}"),
+    for old, new in (("0.0.0.0:8802", f"127.0.0.1:{port}"), ("127.0.0.1:1502", f"127.0.0.1:{rig.port}"),
                      ("/etc/leveler/tls", str(pki)), ("pid =", f"pid =\noutput = {tmp_path}/stunnel.log")):
         assert old in conf
         conf = conf.replace(old, new)
@@ -87,19 +101,20 @@ def context(pki, cert=None):
     return ctx
 
 
-def test_certificate_holder_reads_and_writes_through_tls(tls):
+def test_certificate_holder_reads_through_tls_but_stunnel_gives_no_write_rights(tls):
     pki, port, rig = tls
     c = ModbusTlsClient("127.0.0.1", port=port, sslctx=context(pki, "operator"), timeout=3, retries=0)
     assert c.connect()
     up = c.read_input_registers(rp.IR_UPTIME_MS, count=2)
     assert not up.isError()
-    assert not c.write_register(rp.HR_MODE, rp.MODE_MANUAL).isError()
-    assert c.read_holding_registers(rp.HR_MODE, count=1).registers[0] == rp.MODE_MANUAL
+    r = c.write_register(rp.HR_MODE, rp.MODE_MANUAL)
+    assert r.isError() and r.exception_code == 1
+    assert c.read_holding_registers(rp.HR_MODE, count=1).registers[0] != rp.MODE_MANUAL
     c.close()
-    print(f"TLS (client certificate): uptime {rp.u32(up.registers)} ms read, mode written and read back")
+    print(f"TLS (client certificate): uptime {rp.u32(up.registers)} ms read, write refused (exception 01)")
 
 
-@pytest.mark.parametrize("cert", [None, "intruder"])
+@pytest.mark.parametrize("cert", [None, "intruder", "revoked"])
 def test_no_or_foreign_certificate_gets_nothing_through(tls, cert):
     pki, port, rig = tls
     c = ModbusTlsClient("127.0.0.1", port=port, sslctx=context(pki, cert), timeout=2, retries=0)
