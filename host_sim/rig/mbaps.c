@@ -39,6 +39,7 @@
 #include <openssl/x509.h>
 #include <openssl/x509v3.h>
 
+#include "cli.h"
 #include "rig_config.h"
 
 #define ROLE_OID "1.3.6.1.4.1.50316.802.1"
@@ -318,26 +319,44 @@ static void accept_loop(SSL_CTX *ctx, int lfd, const rig_config *cfg)
     }
 }
 
+enum { OPT_CONFIG = 0x100 };
+
+static const cli_option mbaps_options[] = {
+    {"config", OPT_CONFIG, "FILE", "the rig's INI file: its [mbaps] and [supervision] write_socket (boards/linux-rig/rig.ini)", 1},
+    {NULL, 0, NULL, NULL, 0},
+};
+
+static const cli_spec mbaps_cli = {
+    .prog = "leveler-mbaps",
+    .usage = "--config FILE",
+    .about = "Modbus/TCP Security (TLS, client certificates, roles) in front of leveler-rig.",
+    .opts = mbaps_options,
+};
+
+static int mbaps_option(void *user, int key, const char *v)
+{
+    (void)key;
+    *(const char **)user = v;
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
-    bool help = argc == 2 && !strcmp(argv[1], "--help");
-    if (help || argc != 3 || strcmp(argv[1], "--config") != 0) {
-        fprintf(help ? stdout : stderr, "usage: leveler-mbaps --config FILE\n"
-                        "  Modbus/TCP Security (TLS, client certificates, roles) in front of leveler-rig:\n"
-                        "  [mbaps] and [supervision] write_socket in FILE (boards/linux-rig/rig.ini)\n");
-        return help ? 0 : 2;
-    }
+    const char *config = NULL;
+    int prc = cli_parse(&mbaps_cli, argc, argv, mbaps_option, &config, NULL);
+    if (prc != CLI_CONTINUE)
+        return prc;
     static rig_config cfg;
     char err[512];
     rig_config_defaults(&cfg);
-    if (rig_config_load(argv[2], &cfg, err, sizeof err) != 0) {
+    if (rig_config_load(config, &cfg, err, sizeof err) != 0) {
         fprintf(stderr, "leveler-mbaps: %s\n", err);
         return 2;
     }
-    if (check_config(argv[2], &cfg) != 0)
+    if (check_config(config, &cfg) != 0)
         return 2;
-    SSL_CTX *ctx = tls_context(argv[2], &cfg);
-    int lfd = ctx ? listen_tcp(&cfg, argv[2]) : -1;
+    SSL_CTX *ctx = tls_context(config, &cfg);
+    int lfd = ctx ? listen_tcp(&cfg, config) : -1;
     if (lfd < 0)
         return 1;
     if (cfg.mbaps_port_file[0])

@@ -31,6 +31,7 @@ PROGRAMS = {
     "leveler-rig": (lambda: c_program("leveler-rig"), ["--config"]),
     "leveler-plant-server": (lambda: c_program("leveler-plant-server"), ["--config"]),
     "leveler-schedule-run": (lambda: c_program("leveler-schedule-run"), []),
+    "leveler-mbaps": (lambda: c_program("leveler-mbaps"), ["--config"]),
     "leveler-ctlbench": (lambda: c_program("leveler-ctlbench"), ["--out", "--quiet"]),
     "leveler-sim-bench": (lambda: c_program("leveler-sim-bench"), ["--config"]),
     "leveler-diagnose": (lambda: [str(ROOT / "scripts" / "leveler-diagnose")], ["--config", "--out", "--quiet"]),
