@@ -70,7 +70,7 @@ def test_c_help_layout_one_line_per_option():
     out = run(c_program("leveler-plant-server") + ["--help"]).stdout
     lines = out.split("options (--opt VALUE or --opt=VALUE):\n")[1].split("\n\n")[0].splitlines()
     names = [l.split()[0] for l in lines if l.startswith("  -")]
-    assert names == ["--config", "--address", "--port", "--port-file", "--clock", "--max-seconds", "-h,",
+    assert names == ["--config", "--address", "--port", "--port-file", "--clock", "--max-seconds", "--schedule", "-h,",
                      "--version"]
 
 
