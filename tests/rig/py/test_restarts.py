@@ -35,6 +35,15 @@ def test_watchdog_armed_again_after_each_module_restart(tmp_path):
             assert armed, f"module restart {restart + 1}: watchdog register {watchdog_register(module)}, not {WATCHDOG_MS}"
             module.close()
         module = plant.client()
+        sv = rig.client()  # a restart may have latched sensor faults (the link was down): the operator clears them
+
+        def in_control():
+            if sv.read_discrete_inputs(rp.DI_FAULT_LATCHED, count=1).bits[0]:
+                sv.write_coil(rp.COIL_CLEAR_FAULTS, True)
+                return False
+            return sv.read_discrete_inputs(rp.DI_SENSORS_VALID, count=1).bits[0]
+        assert rp.wait_until(in_control, 5.0, step_s=0.05)
+        sv.close()
         start_charging(rig, module)
         os.kill(rig.proc.pid, signal.SIGKILL)
         ms = ms_until_safe(module)
