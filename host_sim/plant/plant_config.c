@@ -90,6 +90,8 @@ const field fields[] = {
     {"platform", "damping_up", K_LDAMP, T_DOUBLE, PP(damping_up_n_s_per_m), 0, 1e6},
     {"platform", "damping_down", K_LDAMP, T_DOUBLE, PP(damping_down_n_s_per_m), 0, 1e6},
     {"platform", "velocity_deadband", K_VEL, T_DOUBLE, PP(velocity_deadband_m_per_s), 0, 1},
+    {"spring", "load_min", K_FORCE, T_DOUBLE, CF(valid_load_min_n), 0, 1e5},
+    {"spring", "load_max", K_FORCE, T_DOUBLE, CF(valid_load_max_n), 0, 1e5},
     {"platform", "height_min", K_LENGTH, T_DOUBLE, PP(height_min_m), 0, 2},
     {"platform", "height_max", K_LENGTH, T_DOUBLE, PP(height_max_m), 0, 2},
     {"initial", "height", K_LENGTH, T_DOUBLE, PP(init_height_m), 0, 2},
@@ -666,6 +668,8 @@ void plant_config_defaults(plant_config *c)
     c->chatter_max_per_min = -1; /* not given: the firmware's own default stays */
     c->band_lower_m = 15.6 * in;
     c->band_upper_m = 15.8 * in;
+    c->valid_load_min_n = 0.0; /* unchecked unless the config says */
+    c->valid_load_max_n = 1e5;
     c->base_load_n = 900.0 * lbf;
     c->step_load_n = 200.0 * lbf;
     c->step_on_s = 5.0;
@@ -734,6 +738,8 @@ int plant_config_check(const plant_config *c, char *err, size_t len)
     }
     if (c->step_on_s > c->step_off_s)
         return cfail(err, len, c, "[scenario] step_on must not be after step_off");
+    if (c->valid_load_min_n >= c->valid_load_max_n)
+        return cfail(err, len, c, "[spring] load_min must be below load_max");
     /* The effective area must stay physical over the range the fit was made for
      * (the thesis fit is negative at no load). */
     for (double load_lbf = 700.0; load_lbf <= 1500.0; load_lbf += 50.0)

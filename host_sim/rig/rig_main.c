@@ -53,6 +53,7 @@
 #include "rig_config.h"
 #include "rig_hal.h"
 #include "runlog.h"
+#include "runlog_firmware.h"
 #include "modbus_link.h"
 #include "sensor_module.h"
 #include "supervision.h"
@@ -142,18 +143,18 @@ static void log_tick(rig *r, const bool out[HAL_OUT_COUNT])
     } else {
         load_n = cfg->log_load_n;
     }
-    runlog_row row = {
-        .t_s = rig_hal_now_s(),
-        .height_m = reg32(m) * 1e-6,
-        .p_spring_pa = p[0],
-        .p_pipe_pa = p[1],
-        .p_acc_pa = p[2],
-        .load_n = load_n,
-        .compressor = out[HAL_OUT_COMPRESSOR],
-        .spring_valve = out[HAL_OUT_SPRING_VALVE],
-        .vent_valve = out[HAL_OUT_VENT_VALVE],
-        .acc_valve = cfg->pin[HAL_OUT_ACC_VALVE].configured ? out[HAL_OUT_ACC_VALVE] : -1,
-    };
+    runlog_row row = runlog_row_empty();
+    row.t_s = rig_hal_now_s();
+    row.height_m = reg32(m) * 1e-6;
+    row.p_spring_pa = p[0];
+    row.p_pipe_pa = p[1];
+    row.p_acc_pa = p[2];
+    row.load_n = load_n;
+    row.compressor = out[HAL_OUT_COMPRESSOR];
+    row.spring_valve = out[HAL_OUT_SPRING_VALVE];
+    row.vent_valve = out[HAL_OUT_VENT_VALVE];
+    row.acc_valve = cfg->pin[HAL_OUT_ACC_VALVE].configured ? out[HAL_OUT_ACC_VALVE] : -1;
+    runlog_row_firmware_state(&row);
     /* No load yet, or lockstep time that did not advance (a failed step): nothing new to log. */
     if (!isfinite(row.load_n) || row.t_s <= r->last_t_s)
         return;

@@ -226,7 +226,9 @@ runlog *runlog_open(const runlog_options *options, char *err, size_t err_len)
     int hlen = snprintf(log->header, sizeof log->header,
                         "# leveler run log, format %d\n# config: %s\n# source: %s\n# version: %s\n"
                         "t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,"
-                        "compressor,spring_valve,vent_valve,acc_valve\n",
+                        "compressor,spring_valve,vent_valve,acc_valve,"
+                        "mode,control_state,latched_fault_bits,sensors_valid,"
+                        "true_height_m,true_p_spring_pa,true_p_pipe_pa,true_p_acc_pa\n",
                         RUNLOG_FORMAT_VERSION,
                         options->config_name ? options->config_name : "",
                         options->source ? options->source : "", LEVELER_VERSION);
@@ -316,6 +318,24 @@ static void put_flag(line_buffer *line, int v)
     }
 }
 
+/* A small non-negative integer (mode, state, fault bits); negative -> empty cell. */
+static void put_int(line_buffer *line, int v)
+{
+    char *c = cell(line);
+    if (c) {
+        c[0] = ',';
+        line->len += 1 + (v < 0 ? 0 : (size_t)snprintf(c + 1, DECIMAL_MAX, "%d", v));
+    }
+}
+
+runlog_row runlog_row_empty(void)
+{
+    return (runlog_row){.p_spring_pa = NAN, .p_pipe_pa = NAN, .p_acc_pa = NAN, .compressor = -1, .spring_valve = -1,
+                        .vent_valve = -1, .acc_valve = -1, .mode = -1, .control_state = -1,
+                        .latched_fault_bits = -1, .sensors_valid = -1, .true_height_m = NAN,
+                        .true_p_spring_pa = NAN, .true_p_pipe_pa = NAN, .true_p_acc_pa = NAN};
+}
+
 /* One formatted line into the file, the buffer or the next rotated file;
  * -1 if it did not get there whole (the file then ends at its last whole line). */
 static int store_line(runlog *log, const char *line, size_t len)
@@ -361,6 +381,14 @@ int runlog_write(runlog *log, const runlog_row *row)
     put_flag(&line, row->spring_valve);
     put_flag(&line, row->vent_valve);
     put_flag(&line, row->acc_valve);
+    put_int(&line, row->mode);
+    put_int(&line, row->control_state);
+    put_int(&line, row->latched_fault_bits);
+    put_flag(&line, row->sensors_valid);
+    put_number(&line, row->true_height_m);
+    put_number(&line, row->true_p_spring_pa);
+    put_number(&line, row->true_p_pipe_pa);
+    put_number(&line, row->true_p_acc_pa);
     append(&line, "\n", 1);
     if (line.overflow) {
         errno = EOVERFLOW;

@@ -16,8 +16,6 @@
 /* A load change throws the platform about for up to a second before any valve
  * acts; entering the band in that time is the load's doing, not a return. */
 #define LOAD_MOTION_S 1.0
-#define SPRING_MIN_M (13.76 * PLANT_M_PER_IN)
-#define SPRING_MAX_M (17.61 * PLANT_M_PER_IN)
 
 static const char *const THESIS_CONFIGS[] = {"thesis-900lb",  "thesis-900lb-tube",  "thesis-900lb-diaphragm",
                                              "thesis-1000lb", "thesis-1000lb-tube", "thesis-1000lb-diaphragm"};
@@ -160,7 +158,7 @@ static void score_step(const runlog_row *rows, size_t i0, size_t i1, const band 
     bool out_before = false, entered = false;
     size_t last_entry = i0;
     for (size_t i = i0; i < i1; i++) {
-        double off = outside_m(b, rows[i].height_m);
+        double off = outside_m(b, rows[i].true_height_m);
         if (off > 0.0) {
             st->left_band = true;
             out_before = true;
@@ -177,7 +175,7 @@ static void score_step(const runlog_row *rows, size_t i0, size_t i1, const band 
         if (i > 0 && row_bits(&rows[i]) != row_bits(&rows[i - 1]))
             st->switchings++;
     }
-    st->settled = i1 > i0 && outside_m(b, rows[i1 - 1].height_m) == 0.0;
+    st->settled = i1 > i0 && outside_m(b, rows[i1 - 1].true_height_m) == 0.0;
     if (!st->left_band)
         st->return_s = 0.0;
     else if (st->settled)
@@ -234,9 +232,9 @@ static void score_run(const ctlbench_scenario *sc, const runlog_row *rows, size_
         bool switched = i > 0 && row_bits(r) != row_bits(&rows[i - 1]);
         m->switchings += switched;
         m->compressor_on_s += r->compressor > 0 ? TICK_S : 0.0;
-        if (r->vent_valve > 0 && r->p_pipe_pa > pl->p.ambient_pa)
-            m->vented_kg += plant_orifice_flow(pl, cda, r->p_pipe_pa, pl->p.ambient_pa) * TICK_S;
-        double off = outside_m(b, r->height_m);
+        if (r->vent_valve > 0 && r->true_p_pipe_pa > pl->p.ambient_pa)
+            m->vented_kg += plant_orifice_flow(pl, cda, r->true_p_pipe_pa, pl->p.ambient_pa) * TICK_S;
+        double off = outside_m(b, r->true_height_m);
         m->outside_s += off > 0.0 ? TICK_S : 0.0;
         if (in_rest) {
             m->rest_switchings += switched;
@@ -255,12 +253,8 @@ int ctlbench_run(const ctlbench_scenario *sc, int algorithm, const char *configs
     snprintf(path, sizeof path, "%s/%s", configs_dir, sc->config);
     if (plant_config_load(path, &cfg, err, err_len) != 0)
         return -1;
-    /* The spring's own travel (Chapter III, hysteresis measurement: 13.76 in
-     * uncharged, 17.61 in fully extended) as end stops: the thesis configs
-     * leave them open, and a load step of the random suite would otherwise
-     * carry the platform past the height transducer's span into a sensor fault. */
-    cfg.plant.height_min_m = SPRING_MIN_M;
-    cfg.plant.height_max_m = SPRING_MAX_M;
+    /* The end stops are the config's ([platform] height_min / height_max: the
+     * thesis configs set the spring's travel, 13.76..17.61 in). */
     cfg.sensors.noise_counts = sc->noise_counts;
     cfg.sensors.noise_seed = sc->noise_seed;
     /* Algorithms 1 and 2 run as the thesis has them: no chatter fault to stop their hunting. */

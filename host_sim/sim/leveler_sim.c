@@ -14,16 +14,18 @@
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
 #include "pyrun.h"
+#include "runlog_firmware.h"
 #include "simloop.h"
 
 enum { OPT_CONFIG = 0x100, OPT_LOG, OPT_SCHEDULE, OPT_ALGORITHM, OPT_SUMMARY, OPT_PLOT, OPT_UNITS, OPT_END_S,
-       OPT_DUMP, OPT_QUIET };
+       OPT_DUMP, OPT_QUIET, OPT_FAIL_ON_FAULT };
 
 static const cli_option sim_options_list[] = {
     {"config", OPT_CONFIG, "FILE", "plant, sensors, controller settings, scenario (docs/config-format.md)", 0},
@@ -42,6 +44,7 @@ static const cli_option sim_options_list[] = {
      "print the resolved config (the built-in one without --config)\n"
      "as JSON in SI units and exit (what scripts/leveler/config.py reads)", 0},
     {"quiet", OPT_QUIET, NULL, "no progress lines on long runs", 0},
+    {"fail-on-fault", OPT_FAIL_ON_FAULT, NULL, "exit 1 when the supervisor latched a fault during the run", 0},
     {NULL, 0, NULL, NULL, 0},
 };
 
@@ -49,6 +52,7 @@ static const cli_spec sim_cli = {
     .prog = "leveler-sim",
     .usage = "--config FILE [--schedule FILE] [--algorithm 1|2|3] --log run.csv\n"
              "[--summary run.json] [--plot run.png] [--units thesis|si] [--end-s S] [--quiet]\n"
+             "[--fail-on-fault]\n"
              "|--dump-config [--config FILE]",
     .about = "The unchanged firmware against the plant model: writes the run log (docs/log-format.md).",
     .opts = sim_options_list,
@@ -74,7 +78,8 @@ static int dump_config(const char *config)
     return plant_config_write_json(&cfg, stdout) == 0 && fflush(stdout) == 0 ? 0 : 1;
 }
 
-static int run_report(const char *log, const char *summary, const char *plot, const char *config, const char *units)
+static int run_report(const char *log, const char *summary, const char *plot, const char *config, const char *units,
+                      int not_thesis)
 {
     const char *args[16];
     int n = 0;
@@ -94,6 +99,8 @@ static int run_report(const char *log, const char *summary, const char *plot, co
     }
     args[n++] = "--units";
     args[n++] = units;
+    if (not_thesis) /* another schedule or algorithm: no thesis column */
+        args[n++] = "--no-thesis";
     args[n] = NULL;
     int rc = sim_python_module("leveler-sim", "report", args);
     if (rc == -2) {
@@ -110,7 +117,7 @@ static int run_report(const char *log, const char *summary, const char *plot, co
 typedef struct {
     const char *config, *schedule, *log, *summary, *plot, *units;
     int algorithm; /* 0 = the config's */
-    int dump, quiet;
+    int dump, quiet, fail_on_fault;
     double end_s;
 } sim_args;
 
@@ -126,6 +133,7 @@ static int parse_option(void *user, int key, const char *v)
     case OPT_PLOT: a->plot = v; return 0;
     case OPT_DUMP: a->dump = 1; return 0;
     case OPT_QUIET: a->quiet = 1; return 0;
+    case OPT_FAIL_ON_FAULT: a->fail_on_fault = 1; return 0;
     case OPT_UNITS:
         if (strcmp(v, "thesis") != 0 && strcmp(v, "si") != 0)
             return cli_bad_value(&sim_cli, "units", v, "thesis or si");
@@ -160,8 +168,40 @@ static int parse_args(int argc, char **argv, sim_args *a)
     return CLI_CONTINUE;
 }
 
-/* Load, open the log, run, close: the exit status. */
-static int simulate(const sim_args *a)
+/* The run in a paragraph: faults, what the outputs did, the model's valid range. */
+static void print_summary(const plant_config *cfg, const sim_result *res)
+{
+    const sim_events *e = &res->events;
+    printf("summary: ");
+    if (!e->latched_bits)
+        printf("no fault latched.");
+    for (int c = 0; c < SIM_FAULT_CODES; c++)
+        if (e->latched_bits & (1u << c))
+            printf("the supervisor latched %s at %.2f s. ", runlog_fault_name(c + 1), e->fault_t_s[c]);
+    if (e->latched_bits && !isnan(e->safe_from_s))
+        printf("The outputs were held safe from %.2f s for %.2f s of the %.2f s run (a rig needs a clear_faults "
+               "write to resume).",
+               e->safe_from_s, e->safe_s, res->end_s);
+    printf("\n");
+    const double in = PLANT_M_PER_IN;
+    if (e->end_stop)
+        printf("warning: the platform reached its %s end stop (%.2f in, [platform] height_%s) at %.2f s: the model "
+               "is valid only inside the spring's travel, %.2f..%.2f in.\n",
+               e->end_stop < 0 ? "bottom" : "top", (e->end_stop < 0 ? cfg->plant.height_min_m : cfg->plant.height_max_m) / in,
+               e->end_stop < 0 ? "min" : "max", e->end_stop_t_s, cfg->plant.height_min_m / in,
+               cfg->plant.height_max_m / in);
+    if (!isnan(e->load_out_t_s))
+        printf("warning: the load %.0f N (%.0f lbf) at %.2f s is outside the loads the model was fitted for, "
+               "%.0f..%.0f lbf ([spring] load_min/load_max).\n",
+               e->load_out_n, e->load_out_n / PLANT_N_PER_LBF, e->load_out_t_s,
+               cfg->valid_load_min_n / PLANT_N_PER_LBF, cfg->valid_load_max_n / PLANT_N_PER_LBF);
+    printf("final height %.3f in (%.4f m)\n", res->final_plant.x[PLANT_X_Y] / in, res->final_plant.x[PLANT_X_Y]);
+}
+
+/* Load, open the log, run, close: the exit status. *not_thesis: the run is not
+ * a thesis case (the thesis ran its own scenario, algorithm 1 without and 2
+ * with an accumulator). */
+static int simulate(const sim_args *a, int *not_thesis)
 {
     static plant_config cfg;
     char err[1024];
@@ -171,8 +211,10 @@ static int simulate(const sim_args *a)
     }
     sim_load_step *steps = NULL;
     size_t nsteps = 0;
-    if (a->schedule && sim_schedule_load(a->schedule, &steps, &nsteps, err, sizeof err) != 0) {
+    if (a->schedule && (sim_schedule_load(a->schedule, &steps, &nsteps, err, sizeof err) != 0 ||
+                        sim_schedule_check_loads(&cfg, a->schedule, steps, nsteps, err, sizeof err) != 0)) {
         fprintf(stderr, "leveler-sim: %s\n", err);
+        free(steps);
         return 2;
     }
     runlog_options lo = {.path = a->log, .config_name = cfg.name, .source = "sim", .buffered = 1};
@@ -182,6 +224,8 @@ static int simulate(const sim_args *a)
         free(steps);
         return 2;
     }
+    int algorithm = a->algorithm ? a->algorithm : cfg.algorithm;
+    *not_thesis = a->schedule != NULL || algorithm != (cfg.plant.acc_type == PLANT_ACC_NONE ? 1 : 2);
     sim_options so = {.config = &cfg, .algorithm = a->algorithm, .steps = steps, .step_count = nsteps,
                       .end_s = a->end_s, .log = rl, .progress = progress, .progress_user = (void *)&a->quiet};
     static sim_result res;
@@ -195,7 +239,9 @@ static int simulate(const sim_args *a)
         fprintf(stderr, "leveler-sim: %s\n", err);
         return 1;
     }
-    return 0;
+    if (!a->quiet || res.events.latched_bits)
+        print_summary(&cfg, &res);
+    return a->fail_on_fault && res.events.latched_bits ? 1 : 0;
 }
 
 int main(int argc, char **argv)
@@ -206,8 +252,11 @@ int main(int argc, char **argv)
         return rc;
     if (a.dump)
         return dump_config(a.config);
-    rc = simulate(&a);
-    if (rc == 0 && (a.summary || a.plot))
-        rc = run_report(a.log, a.summary, a.plot, a.config, a.units);
+    int not_thesis = 1;
+    rc = simulate(&a, &not_thesis);
+    if (rc != 2 && (a.summary || a.plot)) {
+        int report = run_report(a.log, a.summary, a.plot, a.config, a.units, not_thesis);
+        rc = rc ? rc : report;
+    }
     return rc;
 }

@@ -168,7 +168,7 @@ static int parse_row(char *p, const char *path, int lineno, const columns *c, si
         snprintf(err, err_len, "%s:%d: load_n: out of range [0, 100000] N", path, lineno);
         return -1;
     }
-    *row = (sim_load_step){.t_s = t, .load_n = load};
+    *row = (sim_load_step){.t_s = t, .load_n = load, .line = lineno};
     for (int i = 2; i < c->n; i++) {
         const sim_schedule_reg *r = &sim_schedule_regs[c->reg[i]];
         if (parse_reg(f[i], c->reg[i], row) != 0) {
@@ -245,5 +245,26 @@ int sim_schedule_load(const char *path, sim_load_step **steps, size_t *count, ch
     }
     *steps = v;
     *count = n;
+    return 0;
+}
+
+int sim_schedule_check_loads(const plant_config *cfg, const char *path, const sim_load_step *steps, size_t count,
+                             char *err, size_t err_len)
+{
+    const double lo = cfg->valid_load_min_n, hi = cfg->valid_load_max_n;
+    bool all_lbf = count > 0; /* every load a plausible weight in lbf: typed without converting */
+    for (size_t i = 0; i < count; i++)
+        all_lbf = all_lbf && steps[i].load_n >= lo / PLANT_N_PER_LBF && steps[i].load_n <= hi / PLANT_N_PER_LBF;
+    for (size_t i = 0; i < count; i++) {
+        double f = steps[i].load_n;
+        if (f >= lo && f <= hi)
+            continue;
+        snprintf(err, err_len,
+                 "%s:%d: load_n: %g N is outside the loads the model was fitted for, %.0f..%.0f N "
+                 "(%.0f..%.0f lbf, [spring] load_min/load_max of %s)%s",
+                 path, steps[i].line, f, lo, hi, lo / PLANT_N_PER_LBF, hi / PLANT_N_PER_LBF, cfg->path,
+                 all_lbf ? "; these loads look like lbf: load_n is in newtons (1 lbf = 4.448 N)" : "");
+        return -1;
+    }
     return 0;
 }

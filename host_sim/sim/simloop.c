@@ -1,17 +1,32 @@
 /* The firmware-in-the-loop run (simloop.h) on the one stepper (stepper.h). */
 #include "simloop.h"
 
+#include "leveler/status.h"
+#include "runlog_firmware.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
+/* What the firmware read (from its second tick on; the first row, before its
+ * first reading, holds the transducers' values), its state, and the truth. */
 static void fill_row(runlog_row *row, const sim_stepper *s, bool has_acc)
 {
+    *row = runlog_row_empty();
     row->t_s = s->t_s_now;
-    row->height_m = s->sensed[0];
-    row->p_spring_pa = s->sensed[1];
-    row->p_pipe_pa = s->sensed[2];
-    row->p_acc_pa = has_acc ? s->sensed[3] : NAN;
+    row->true_height_m = s->sensed[0];
+    row->true_p_spring_pa = s->sensed[1];
+    row->true_p_pipe_pa = s->sensed[2];
+    row->true_p_acc_pa = has_acc ? s->sensed[3] : NAN;
+    if (s->k == 0 && s->initial_outputs) {
+        row->height_m = row->true_height_m;
+        row->p_spring_pa = row->true_p_spring_pa;
+        row->p_pipe_pa = row->true_p_pipe_pa;
+        row->p_acc_pa = row->true_p_acc_pa;
+    } else {
+        runlog_row_firmware_readings(row, has_acc);
+    }
+    runlog_row_firmware_state(row);
     row->load_n = s->in.load_n;
     row->compressor = s->out[HAL_OUT_COMPRESSOR];
     row->spring_valve = s->out[HAL_OUT_SPRING_VALVE];
@@ -35,6 +50,41 @@ static int record(const sim_options *o, sim_result *res, const sim_stepper *s, c
     return 0;
 }
 
+static void events_start(sim_events *e)
+{
+    memset(e, 0, sizeof *e);
+    for (int c = 0; c < SIM_FAULT_CODES; c++)
+        e->fault_t_s[c] = NAN;
+    e->safe_from_s = e->end_stop_t_s = e->load_out_t_s = NAN;
+}
+
+/* After the firmware's decision of a tick: faults, end stops, loads. */
+static void events_track(sim_events *e, const sim_stepper *s)
+{
+    const leveler_status *st = leveler_app_status();
+    const plant_params *p = &s->cfg->plant;
+    uint16_t fresh = (uint16_t)(st->latched_fault_bits & ~e->latched_bits);
+    for (int c = 0; c < SIM_FAULT_CODES; c++)
+        if (fresh & (1u << c))
+            e->fault_t_s[c] = s->t_s_now;
+    e->latched_bits |= st->latched_fault_bits;
+    if (st->fault_latched && st->outputs_safe) {
+        if (isnan(e->safe_from_s))
+            e->safe_from_s = s->t_s_now;
+        e->safe_s += SIM_TICK_S;
+    }
+    double y = ((const plant *)s->plant)->x[PLANT_X_Y], tol = 1e-9;
+    if (!e->end_stop && (y <= p->height_min_m + tol || y >= p->height_max_m - tol)) {
+        e->end_stop = y <= p->height_min_m + tol ? -1 : 1;
+        e->end_stop_t_s = s->t_s_now;
+    }
+    double load = s->in.load_n;
+    if (isnan(e->load_out_t_s) && (load < s->cfg->valid_load_min_n || load > s->cfg->valid_load_max_n)) {
+        e->load_out_t_s = s->t_s_now;
+        e->load_out_n = load;
+    }
+}
+
 int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
 {
     const plant_config *cfg = o->config;
@@ -50,6 +100,7 @@ int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
     if (o->end_s > 0.0)
         end_s = o->end_s;
     memset(res, 0, sizeof *res);
+    events_start(&res->events);
 
     static plant pl; /* large; one simulation at a time anyway */
     plant_init(&pl, &cfg->plant);
@@ -74,6 +125,8 @@ int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
             snprintf(err, err_len, "%s", writer.err);
             return -1;
         }
+        if (st.k > 0)
+            events_track(&res->events, &st);
         if (record(o, res, &st, err, err_len) != 0)
             return -1;
         res->ticks++;

@@ -53,6 +53,16 @@ def _runs(flag):
     return list(zip(starts, ends - starts))
 
 
+def _mark_faults(ax, log):
+    """Red spans where the supervisor held a latched fault (format 3 logs)."""
+    bits = np.nan_to_num(log.latched_fault_bits, nan=0.0)
+    t = log.t_s
+    for n, (i, length) in enumerate(_runs(bits > 0)):
+        end = t[min(i + length, len(t) - 1)]
+        ax.axvspan(t[i], end, color="#d62728", alpha=0.15, lw=0,
+                   label="fault latched" if n == 0 else None)
+
+
 def plot_run(log, out_png, analysis=None, cfg=None, units="thesis", title=None):
     """Draws the report figure for ``log`` into ``out_png`` (atomic write)."""
     if units not in _UNITS:
@@ -92,6 +102,7 @@ def plot_run(log, out_png, analysis=None, cfg=None, units="thesis", title=None):
         ax_h.annotate(f"stuck {stuck:.1f} s", ((ex.t_rest_s + t_end) / 2, level),
                       xytext=(0, -12 if ex.direction > 0 else 6), textcoords="offset points",
                       ha="center", fontsize=8, color="#ff7f0e")
+    _mark_faults(ax_h, log)
     ax_h.set_ylabel(hlabel)
     ax_h.grid(True, alpha=0.3)
     ax_h.legend(loc="lower right", fontsize=8)

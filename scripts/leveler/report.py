@@ -66,7 +66,11 @@ def format_table(summary, published, case, units="thesis"):
         rows.append((_LABELS[key], unit, _fmt(run_v, unit), _fmt(pub_v, unit),
                      "-" if diff is None else ("+" if diff >= 0 else "") + _fmt(diff, unit)))
     head = ("figure", "unit", "this run", case or "published", "difference")
-    widths = [max(len(r[i]) for r in rows + [head]) for i in range(5)]
+    if published is None:                 # the run's own figures, no thesis column
+        rows = [r[:3] for r in rows]
+        head = head[:3]
+    ncol = len(head)
+    widths = [max(len(r[i]) for r in rows + [head]) for i in range(ncol)]
     lines = ["  ".join(h.ljust(w) if i < 2 else h.rjust(w) for i, (h, w) in enumerate(zip(head, widths)))]
     lines.append("  ".join("-" * w for w in widths))
     for n, r in enumerate(rows):
@@ -86,7 +90,9 @@ def build_parser():
     p.add_argument("--units", choices=("thesis", "si"), default="thesis",
                    help="units of the printed table and the plot (default thesis: in, psia, s)")
     p.add_argument("--compare", choices=sorted(thesis.CASES),
-                   help="published case to compare with (default: from config name / base load)")
+                   help="published case to compare with (default: from config name, base load and accumulator)")
+    p.add_argument("--no-thesis", action="store_true",
+                   help="no published column: the run is not a thesis case (another schedule or algorithm)")
     return p
 
 
@@ -104,7 +110,12 @@ def main(argv=None):
     summary = analysis.summary()
 
     base_load = cfg.base_load_n if args.config else float(log.load_n[0])
-    case = args.compare or thesis.pick_case(log.config or cfg.name, log.source, base_load)
+    acc = None
+    if args.config:
+        a = cfg.values.get("accumulator", {})
+        acc = (a.get("type", "none"), a.get("charge_pa", float("nan")))
+    case = args.compare or (None if args.no_thesis else
+                            thesis.pick_case(log.config or cfg.name, log.source, base_load, acc))
     published = thesis.CASES.get(case) if case else None
 
     try:
@@ -119,8 +130,8 @@ def main(argv=None):
 
     print(f"{args.log} (leveler {__version__}; log written by {log.meta.get('version', 'a version before 0.6.0')}): "
           f"config '{log.config}', source {log.source}, {len(log)} rows, "
-          f"{log.t_s[0]:.2f}..{log.t_s[-1]:.2f} s; compared with "
-          f"{case or 'no published case (name or base load not 900/1000 lb)'}")
+          f"{log.t_s[0]:.2f}..{log.t_s[-1]:.2f} s; "
+          + (f"compared with {case}" if case else "its own event figures (not a published thesis case)"))
     if not analysis.load_events:
         print("no load step found in load_n: no event figures")
     print(format_table(summary, published, case, args.units))

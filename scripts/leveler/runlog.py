@@ -32,16 +32,23 @@ import numpy as np
 
 from .cli import umask_mode
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 
-COLUMNS = ("t_s", "height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa", "load_n",
-           "compressor", "spring_valve", "vent_valve", "acc_valve")
+BASE_COLUMNS = ("t_s", "height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa", "load_n",
+                "compressor", "spring_valve", "vent_valve", "acc_valve")
+# format 3: the firmware's state after the tick, and the plant's true state (simulated runs)
+STATE = ("mode", "control_state", "latched_fault_bits", "sensors_valid")
+TRUTH = ("true_height_m", "true_p_spring_pa", "true_p_pipe_pa", "true_p_acc_pa")
+COLUMNS = BASE_COLUMNS + STATE + TRUTH
 # The header each format has; format 1 called the valves solenoid and vent.
-HEADERS = {1: COLUMNS[:7] + ("solenoid", "vent", "acc_valve"), 2: COLUMNS}
+# Older formats read with the format 3 columns they lack empty (NaN).
+HEADERS = {1: BASE_COLUMNS[:7] + ("solenoid", "vent", "acc_valve"), 2: BASE_COLUMNS, 3: COLUMNS}
 SUPPORTED_VERSIONS = tuple(HEADERS)
 REQUIRED = ("t_s", "height_m", "load_n")          # never empty
 PRESSURES = ("p_spring_pa", "p_pipe_pa", "p_acc_pa")
 ACTUATORS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
+FLAGS = ACTUATORS + ("sensors_valid",)          # 0/1 cells
+INTEGERS = ("mode", "control_state", "latched_fault_bits")
 SOURCES = ("sim", "rig")
 
 _TITLE = re.compile(r"^#\s*leveler run log,\s*format\s+(\S+)\s*$")
@@ -76,11 +83,24 @@ class RunLog:
     spring_valve: np.ndarray
     vent_valve: np.ndarray
     acc_valve: np.ndarray
+    mode: Optional[np.ndarray] = None
+    control_state: Optional[np.ndarray] = None
+    latched_fault_bits: Optional[np.ndarray] = None
+    sensors_valid: Optional[np.ndarray] = None
+    true_height_m: Optional[np.ndarray] = None
+    true_p_spring_pa: Optional[np.ndarray] = None
+    true_p_pipe_pa: Optional[np.ndarray] = None
+    true_p_acc_pa: Optional[np.ndarray] = None
     format_version: int = FORMAT_VERSION
     config: str = ""
     source: str = "sim"
     meta: Dict[str, str] = dataclasses.field(default_factory=dict)
     path: Optional[str] = None
+
+    def __post_init__(self):
+        for name in STATE + TRUTH:
+            if getattr(self, name) is None:
+                setattr(self, name, np.full(len(self.t_s), np.nan))
 
     def __len__(self):
         return len(self.t_s)
@@ -91,7 +111,7 @@ class RunLog:
     @classmethod
     def from_arrays(cls, t_s, height_m, load_n, p_spring_pa=None, p_pipe_pa=None,
                     p_acc_pa=None, compressor=None, spring_valve=None, vent_valve=None,
-                    acc_valve=None, config="", source="sim", meta=None):
+                    acc_valve=None, config="", source="sim", meta=None, **extra):
         """Builds a log from arrays; missing optional columns become NaN."""
         t = np.asarray(t_s, dtype=float)
         n = len(t)
@@ -105,9 +125,13 @@ class RunLog:
             if a.shape != (n,):
                 raise ValueError(f"column has {a.shape} entries, t_s has {n}")
             return a
+        unknown = set(extra) - set(STATE + TRUTH)
+        if unknown:
+            raise TypeError("unknown run-log column(s): " + ", ".join(sorted(unknown)))
         return cls(t, col(height_m), col(p_spring_pa), col(p_pipe_pa), col(p_acc_pa),
                    col(load_n), col(compressor), col(spring_valve), col(vent_valve), col(acc_valve),
-                   FORMAT_VERSION, config, source, dict(meta or {}))
+                   **{name: col(extra.get(name)) for name in STATE + TRUTH},
+                   format_version=FORMAT_VERSION, config=config, source=source, meta=dict(meta or {}))
 
 
 # --- units detection -----------------------------------------------------------
@@ -262,8 +286,8 @@ def parse(text, path="<string>", check_unit=True):
     if source and source not in SOURCES:
         raise RunLogError(path, None, f"source '{source}' is neither 'sim' nor 'rig'")
 
-    ncol = len(COLUMNS)
-    data = np.full((max(len(lines) - lineno, 0), ncol), np.nan)
+    ncol = len(expected)
+    data = np.full((max(len(lines) - lineno, 0), len(COLUMNS)), np.nan)
     row_lines = np.zeros(len(data), dtype=np.int64)
     nrows = 0
     reader = csv.reader(lines[lineno:])
@@ -284,8 +308,10 @@ def parse(text, path="<string>", check_unit=True):
                     raise RunLogError(path, line, f"column {name}: empty cell (required)")
                 continue
             value = _parse_number(cell, path, line, name)
-            if COLUMNS[j] in ACTUATORS and value not in (0.0, 1.0):
-                raise RunLogError(path, line, f"column {name}: actuator state '{cell}' is not 0 or 1")
+            if COLUMNS[j] in FLAGS and value not in (0.0, 1.0):
+                raise RunLogError(path, line, f"column {name}: state '{cell}' is not 0 or 1")
+            if COLUMNS[j] in INTEGERS and not (value >= 0 and value == int(value)):
+                raise RunLogError(path, line, f"column {name}: '{cell}' is not a whole number >= 0")
             row[j] = value
         if nrows > 0 and not row[0] > data[nrows - 1, 0]:
             raise RunLogError(path, line, f"column t_s: time {cells[0].strip()} does not increase "
@@ -338,7 +364,12 @@ def format_text(log: RunLog):
     for i in range(n):
         cells = []
         for name, c in zip(COLUMNS, cols):
-            cells.append(_fmt_flag(c[i]) if name in ACTUATORS else _fmt(c[i]))
+            if name in FLAGS:
+                cells.append(_fmt_flag(c[i]))
+            elif name in INTEGERS:
+                cells.append("" if not math.isfinite(c[i]) else str(int(c[i])))
+            else:
+                cells.append(_fmt(c[i]))
         out.write(",".join(cells) + "\n")
     return out.getvalue()
 

@@ -171,8 +171,14 @@ ACCUMULATOR_CHARGE_PA = {
 }
 
 
-def pick_case(config_name=None, source=None, base_load_n=None):
+def pick_case(config_name=None, source=None, base_load_n=None, accumulator=None):
     """Chooses the published case to set a run beside.
+
+    ``accumulator`` (type, charge in Pa absolute), when given, must fit the
+    case too: a run without one is set beside the no-accumulator case, a
+    diaphragm run beside the accumulator experiment of its base load and
+    charge (within 0.5 psi), and anything else (a tube, another charge) beside
+    nothing: the thesis published no figures for it.
 
     An exact case name as config name wins. Otherwise the base load is the
     one named in the config name ("...900lb...") or, failing that, the
@@ -194,6 +200,13 @@ def pick_case(config_name=None, source=None, base_load_n=None):
         if abs(nearest - lb) <= 50.0:
             base_lb = nearest
     if base_lb is None:
+        return None
+    if accumulator is not None and accumulator[0] != "none":
+        if accumulator[0] != "diaphragm":
+            return None
+        for case, charge in ACCUMULATOR_CHARGE_PA.items():
+            if case.startswith(f"thesis-{base_lb}lb-") and abs(charge - accumulator[1]) <= 0.5 * PA_PER_PSI:
+                return case
         return None
     kind = "exp" if source == "rig" else "sim"
     return f"thesis-{base_lb}lb-{kind}"

@@ -128,6 +128,9 @@ typedef struct {
     int chatter_max_per_min; /* the supervisor's chatter limit written at start; -1 = firmware default */
     double band_lower_m;
     double band_upper_m;
+    /* The loads the area fit and the hysteresis lines were measured for ([spring]
+     * load_min / load_max): a run outside them is outside the model's valid range. */
+    double valid_load_min_n, valid_load_max_n;
     double base_load_n;
     double step_load_n;
     double step_on_s;

@@ -2,10 +2,14 @@
  * Run-log writer: one CSV format for simulator, rig and diagnosis
  * (docs/log-format.md). SI units, absolute pressures.
  *
- *   # leveler run log, format 2
+ *   # leveler run log, format 3
  *   # config: thesis-900lb
  *   # source: sim            (or rig)
- *   t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,spring_valve,vent_valve,acc_valve
+ *   t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,spring_valve,vent_valve,acc_valve,
+ *   mode,control_state,latched_fault_bits,sensors_valid,true_height_m,true_p_spring_pa,true_p_pipe_pa,true_p_acc_pa
+ *
+ * height and pressures are what the firmware read (its register map's
+ * height_um, p_*_pa); true_* the plant's state (simulated runs only).
  *
  * Lines are written whole, so a process stopped by SIGTERM leaves no torn
  * line: one write per line with fsync on rotation and close (the rig), or
@@ -19,7 +23,7 @@
 
 #include <stddef.h>
 
-#define RUNLOG_FORMAT_VERSION 2
+#define RUNLOG_FORMAT_VERSION 3
 
 typedef struct {
     double t_s;
@@ -32,7 +36,17 @@ typedef struct {
     int spring_valve;
     int vent_valve;
     int acc_valve;
+    /* the firmware's state after the tick (registers.json names); -1 = empty */
+    int mode;               /* leveler_mode */
+    int control_state;      /* leveler_control_state */
+    int latched_fault_bits; /* LEVELER_FAULT_BIT(code) */
+    int sensors_valid;      /* 0/1 */
+    /* the plant's true state (simulated runs); NAN = empty */
+    double true_height_m, true_p_spring_pa, true_p_pipe_pa, true_p_acc_pa;
 } runlog_row;
+
+/* A row with every optional cell empty (NAN / -1); t, height and load to be set. */
+runlog_row runlog_row_empty(void);
 
 typedef struct {
     const char *path;         /* "-" = stdout */

@@ -37,11 +37,25 @@ typedef struct {
     void *progress_user;
 } sim_options;
 
+/* What happened in a run that a user must be told (leveler-sim's summary). */
+#define SIM_FAULT_CODES 16
+typedef struct {
+    uint16_t latched_bits;               /* every fault the supervisor latched (LEVELER_FAULT_BIT) */
+    double fault_t_s[SIM_FAULT_CODES];   /* when fault code c + 1 first latched; NAN = never */
+    double safe_s;                       /* time the outputs were held safe by a latched fault */
+    double safe_from_s;                  /* the first tick they were; NAN = never */
+    int end_stop;                        /* first end stop reached: -1 bottom, +1 top, 0 none */
+    double end_stop_t_s;
+    double load_out_t_s;                 /* first tick with a load outside [spring] load_min..load_max; NAN = none */
+    double load_out_n;
+} sim_events;
+
 typedef struct {
     size_t ticks;         /* 10 ms ticks simulated (t = 0 included; the firmware runs from the second) */
     size_t rows;          /* rows stored in the buffer */
     double end_s;
     plant final_plant;    /* plant at the end */
+    sim_events events;
 } sim_result;
 
 /* Run a whole scenario. 0 on success; -1 with a message in err (refused

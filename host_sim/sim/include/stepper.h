@@ -53,7 +53,15 @@ typedef struct {
     double load_n; /* absolute load */
     uint8_t writes; /* bit j set: sim_schedule_regs[j] is written value[j] at t_s (0 = a load step only) */
     uint16_t value[SIM_SCHEDULE_REG_COUNT];
+    int line;      /* the schedule file's line (0: the config's scenario), for messages */
 } sim_load_step;
+
+/* The rows of a schedule whose loads lie outside the config's [spring]
+ * load_min..load_max (the loads the model was fitted for): 0, or -1 with
+ * "file:line: load_n: ..." for the first, and a hint when the loads look
+ * like lbf typed as newtons. */
+int sim_schedule_check_loads(const plant_config *cfg, const char *path, const sim_load_step *steps, size_t count,
+                             char *err, size_t err_len);
 
 /* The config's built-in scenario (base, +step at step_on, removed at step_off,
  * end): out needs room for 4 steps. Returns the count; *end_s = scenario end. */

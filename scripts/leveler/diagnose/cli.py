@@ -20,7 +20,7 @@ from .errors import DiagnoseInputError
 
 def parse_args(argv):
     ap = leveler_cli.parser("leveler-diagnose", __doc__)
-    ap.add_argument("--config", required=True, help="plant config name (host_sim/configs/NAME.ini)")
+    ap.add_argument("--config", required=True, help="the rig's plant config: a path to an INI file, or a name under host_sim/configs")
     ap.add_argument("--run", action="append", default=[], metavar="CSV", help="calibration run log")
     ap.add_argument("--holdout", action="append", default=[], metavar="CSV",
                     help="held-out run log (never used in fitting)")
@@ -40,6 +40,9 @@ def parse_args(argv):
                     help="propose the experiment that best tells candidate A from B (done anyway "
                          "for candidates the logs cannot tell apart); written to DIR/experiment.csv")
     ap.add_argument("--quiet", action="store_true", help="no progress output")
+    ap.add_argument("--allow-config-mismatch", action="store_true",
+                    help="diagnose logs whose '# config:' names another config than --config's own name "
+                         "(default: refuse them); the mismatch goes into diagnosis.json and the verdict")
     ap.add_argument("--simulator", default=None, help=argparse.SUPPRESS)   # tests: module:factory
     a = ap.parse_args(argv)
     if a.features is None and (not a.run or not a.holdout):
@@ -102,6 +105,24 @@ def run(a, say):
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+def config_name(config):
+    """A config's own name ([config] name, else its file name), from a path or a
+    name under host_sim/configs."""
+    from leveler import config as config_mod
+    from .cplant import CONFIG_DIR
+    path = config if os.path.exists(config) else os.path.join(CONFIG_DIR, config + ".ini")
+    try:
+        return config_mod.load(path).name
+    except Exception:           # a stand-in simulator's configs are names only
+        return os.path.splitext(os.path.basename(config))[0]
+
+
+def config_mismatch(logs, config):
+    """The logs whose '# config:' line names another config than --config's own name."""
+    name = config_name(config)
+    return [{"log": r.path, "logged": r.config, "config": name} for r in logs if r.config and r.config != name]
+
+
 def diagnose_into(a, say, tmp, out):
     from . import model, pipeline, report, runs
     candidates = [c.strip() for c in a.effects.split(",") if c.strip()]
@@ -133,9 +154,15 @@ def diagnose_into(a, say, tmp, out):
         calib = [runs.load_run(p) for p in a.run]
         holdout = [runs.load_run(p) for p in a.holdout]
         mode = a.mode
+        mismatch = config_mismatch(calib + holdout, a.config)
+        if mismatch and not a.allow_config_mismatch:
+            raise DiagnoseInputError("; ".join(f"{m['log']}: logged config {m['logged']!r} is not --config's "
+                                               f"{m['config']!r}" for m in mismatch)
+                                     + " (a diagnosis against another rig's config blames its differences on "
+                                       "effects: give that rig's config, or --allow-config-mismatch)")
+        for m in mismatch:
+            say(f"warning: {m['log']}: logged config {m['logged']!r} is not --config's {m['config']!r}")
         for r in calib + holdout:
-            if r.config and r.config != a.config:
-                say(f"warning: {r.path}: logged config {r.config!r} differs from --config {a.config!r}")
             if mode == "replay" and not r.has_commands:
                 raise DiagnoseInputError(f"{r.path}: --mode replay needs the compressor, spring_valve and "
                                          f"vent_valve columns filled in")
@@ -144,12 +171,17 @@ def diagnose_into(a, say, tmp, out):
                                        {"starts": 8, "max_nfev": 15, "polish": 1} if a.fast else None,
                                        pair)
     result["version"] = leveler.__version__   # the code that made this diagnosis
+    if not a.features and mismatch:
+        result["config_mismatch"] = mismatch
     report.write_json(os.path.join(tmp, OUT_FILES[0]), result)
     report.write_html(os.path.join(tmp, OUT_FILES[1]), result, traces)
     if result.get("experiment"):
         from . import design
         design.write_schedule(os.path.join(tmp, OUT_FILES[2]), result["experiment"])
     publish_out(tmp, out)
+    if result.get("config_mismatch"):
+        say("verdict against logs of another config: " + ", ".join(
+            f"{m['logged']} (not {m['config']})" for m in result["config_mismatch"]))
     say(f"effect: {' + '.join(result['effects']) or 'none'}; held-out shrink {result['shrink_pct']:.1f}%; "
         f"{result['seconds']:.1f} s; wrote {out}/diagnosis.json and report.html")
     return 0
