@@ -309,7 +309,8 @@ def parse(text, path="<string>", check_unit=True):
                 continue
             value = _parse_number(cell, path, line, name)
             if COLUMNS[j] in FLAGS and value not in (0.0, 1.0):
-                raise RunLogError(path, line, f"column {name}: state '{cell}' is not 0 or 1")
+                what = "actuator state" if COLUMNS[j] in ACTUATORS else "state"
+                raise RunLogError(path, line, f"column {name}: {what} '{cell}' is not 0 or 1")
             if COLUMNS[j] in INTEGERS and not (value >= 0 and value == int(value)):
                 raise RunLogError(path, line, f"column {name}: '{cell}' is not a whole number >= 0")
             row[j] = value

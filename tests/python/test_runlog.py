@@ -8,7 +8,7 @@ import pytest
 import synth
 from leveler import runlog
 
-HEADER = ",".join(runlog.COLUMNS)
+HEADER = ",".join(runlog.BASE_COLUMNS)      # format 2's: still read
 TOP = "# leveler run log, format 2\n# config: thesis-900lb\n# source: rig\n" + HEADER + "\n"
 # Format 1 (before the valves got their one name): still read.
 TOP_FORMAT1 = ("# leveler run log, format 1\n# config: thesis-900lb\n# source: rig\n"
@@ -36,10 +36,10 @@ def test_round_trip_is_exact(tmp_path):
     back = runlog.read(path)
     for c in runlog.COLUMNS:
         np.testing.assert_array_equal(back.column(c), log.column(c), err_msg=c)
-    assert (back.config, back.source, back.format_version) == ("thesis-900lb", "sim", 2)
+    assert (back.config, back.source, back.format_version) == ("thesis-900lb", "sim", 3)
     assert back.meta == {"operator": "bench 2"}
     text = path.read_text().splitlines()
-    assert text[0] == "# leveler run log, format 2" and text[4] == HEADER
+    assert text[0] == "# leveler run log, format 3" and text[4] == ",".join(runlog.COLUMNS)
 
 
 def test_reads_c_writer_style_and_empty_cells(tmp_path):
@@ -67,7 +67,7 @@ def test_reads_format_1_with_its_valve_names(tmp_path):
 
 
 @pytest.mark.parametrize("text, line, words", [
-    ("# leveler run log, format 3\n" + HEADER + "\n" + ROW, 1, "unknown format version 3"),
+    ("# leveler run log, format 4\n" + HEADER + "\n" + ROW, 1, "unknown format version 4"),
     ("# config: x\n" + HEADER + "\n" + ROW, 1, "no format line"),
     (TOP.replace(",acc_valve", "") + ROW, 4, "missing column(s) acc_valve"),
     (TOP.replace("acc_valve", "acc_valve,extra") + ROW, 4, "unknown column(s) 'extra'"),

@@ -24,7 +24,10 @@
 #include "leveler/version.h"
 #include "runlog.h"
 
-#define HEADER_COLUMNS "t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,spring_valve,vent_valve,acc_valve"
+#define HEADER_COLUMNS                                                                                           \
+    "t_s,height_m,p_spring_pa,p_pipe_pa,p_acc_pa,load_n,compressor,spring_valve,vent_valve,acc_valve,mode,"        \
+    "control_state,latched_fault_bits,sensors_valid,true_height_m,true_p_spring_pa,true_p_pipe_pa,true_p_acc_pa"
+#define HEADER_COMMAS 17 /* format 3: 18 columns */
 
 static char dir[256];
 
@@ -62,13 +65,24 @@ static char *slurp(const char *path, size_t *len)
 
 static runlog_row sample_row(double t)
 {
-    runlog_row r = {.t_s = t, .height_m = 0.39751, .p_spring_pa = 613633.5, .p_pipe_pa = 613000.25,
-                    .p_acc_pa = NAN, .load_n = 4003.4, .compressor = 1, .spring_valve = 0, .vent_valve = 0,
-                    .acc_valve = -1};
+    runlog_row r = runlog_row_empty();
+    r.t_s = t;
+    r.height_m = 0.39751;
+    r.p_spring_pa = 613633.5;
+    r.p_pipe_pa = 613000.25;
+    r.load_n = 4003.4;
+    r.compressor = 1;
+    r.spring_valve = 0;
+    r.vent_valve = 0;
+    r.mode = 1;
+    r.control_state = 2;
+    r.latched_fault_bits = 128;
+    r.sensors_valid = 1;
+    r.true_height_m = 0.3975;
     return r;
 }
 
-/* Every non-comment line after the column header has exactly 10 fields and ends in '\n'. */
+/* Every non-comment line after the column header has exactly the header's fields and ends in '\n'. */
 static size_t check_complete_lines(const char *text, size_t len)
 {
     assert_true(len > 0);
@@ -87,7 +101,7 @@ static size_t check_complete_lines(const char *text, size_t len)
                 int commas = 0;
                 for (const char *c = p; c < eol; c++)
                     commas += *c == ',';
-                assert_int_equal(commas, 9);
+                assert_int_equal(commas, HEADER_COMMAS);
                 rows++;
             }
         }
@@ -106,18 +120,19 @@ static void writes_header_and_rows_with_empty_cells(void **state)
     assert_non_null(log);
     runlog_row r = sample_row(1.25);
     assert_int_equal(runlog_write(log, &r), 0);
-    runlog_row empty = {.t_s = 1.26, .height_m = 0.4, .p_spring_pa = NAN, .p_pipe_pa = NAN,
-                        .p_acc_pa = NAN, .load_n = 4003.4, .compressor = -1, .spring_valve = -1,
-                        .vent_valve = -1, .acc_valve = -1};
+    runlog_row empty = runlog_row_empty();
+    empty.t_s = 1.26;
+    empty.height_m = 0.4;
+    empty.load_n = 4003.4;
     assert_int_equal(runlog_write(log, &empty), 0);
     assert_int_equal(runlog_close(log), 0);
 
     char *text = slurp(path, NULL);
     assert_non_null(text);
-    assert_string_equal(text, "# leveler run log, format 2\n# config: thesis-900lb\n# source: rig\n# version: " LEVELER_VERSION
+    assert_string_equal(text, "# leveler run log, format 3\n# config: thesis-900lb\n# source: rig\n# version: " LEVELER_VERSION
                               "\n" HEADER_COLUMNS "\n"
-                              "1.250000,0.39751,613633.5,613000.25,,4003.4,1,0,0,\n"
-                              "1.260000,0.4,,,,4003.4,,,,\n");
+                              "1.250000,0.39751,613633.5,613000.25,,4003.4,1,0,0,,1,2,128,1,0.3975,,,\n"
+                              "1.260000,0.4,,,,4003.4,,,,,,,,,,,,\n");
     /* Values survive the text round trip to the precision the analysis needs. */
     double back = strtod(strstr(text, "1.250000,") + 9, NULL);
     assert_true(fabs(back - 0.39751) < 1e-12);
@@ -199,7 +214,7 @@ static void rotates_by_size_and_keeps_n_files(void **state)
         char *text = slurp(name, &len);
         assert_non_null(text);
         assert_true(len <= limit);
-        assert_non_null(strstr(text, "# leveler run log, format 2\n"));
+        assert_non_null(strstr(text, "# leveler run log, format 3\n"));
         rows += check_complete_lines(text, len);
         free(last_first_row);
         last_first_row = text;

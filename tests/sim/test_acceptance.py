@@ -50,11 +50,19 @@ PUBLISHED = {
 # controller (tests/sim/test_plant.c: test_firmware_equals_program_*);
 # test_top_sensitivity below shows what any other alignment gives.
 
-def run_sim(config_path, workdir, tag):
+def run_sim(config_path, workdir, tag, truth=False):
+    """The run's event figures: from what the firmware read (as on a rig), or
+    with truth=True from the plant's true state (the solver studies below: a
+    reading's quantisation is not the solver's error)."""
     log = os.path.join(workdir, tag + ".csv")
     proc = subprocess.run([SIM, "--config", config_path, "--log", log], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
-    return events.summarize(runlog.read(log))
+    r = runlog.read(log)
+    if truth:
+        r = runlog.RunLog.from_arrays(r.t_s, r.true_height_m, r.load_n, r.true_p_spring_pa, r.true_p_pipe_pa,
+                                      r.true_p_acc_pa, r.compressor, r.spring_valve, r.vent_valve, r.acc_valve,
+                                      config=r.config, source=r.source)
+    return events.summarize(r)
 
 
 @pytest.fixture(scope="module")
@@ -102,8 +110,8 @@ def test_convergence(tmp_path, name):
     assert n == 2, f"{name}: substeps_per_tick = {n}; the study below was made for 2"
     half = tmp_path / "half.ini"
     half.write_text(f"[config]\ninclude = {base}\nname = {name}\n[solver]\nsubsteps_per_tick = {2 * n}\n")
-    a = run_sim(base, str(tmp_path), "a")
-    b = run_sim(str(half), str(tmp_path), "b")
+    a = run_sim(base, str(tmp_path), "a", truth=True)
+    b = run_sim(str(half), str(tmp_path), "b", truth=True)
     worst = {}
     for key in events.SUMMARY_KEYS:
         if a[key] is None or b[key] is None:
@@ -137,7 +145,11 @@ def test_top_sensitivity(tmp_path):
         tops.append(s["highest_height_m"] / IN)
         print(f"zero shift {tenth / 10:.1f} count: top {tops[-1]:.3f} in, P2 at the jump {s['p2_jump_pa'] / PSI:.1f} psia")
     assert abs(tops[0] - 17.54) <= 0.05
-    assert max(tops) - min(tops) > 0.2, "the top no longer depends on the sub-count alignment; update the docs"
+    # One alignment keeps the vent shut before the removal: the platform then
+    # jumps to the top end stop (the spring's travel, 17.61 in), the others
+    # stay near the published 17.54 in.
+    assert max(tops) >= 17.60, "no alignment reaches the end stop any more; update the docs"
+    assert max(tops) - min(tops) > 0.15, "the top no longer depends on the sub-count alignment; update the docs"
 
 
 def test_log_to_dev_null_and_to_a_file_agree_on_the_exit(tmp_path):

@@ -466,10 +466,13 @@ class Soak:
             text = f.read_text()
             if text and not text.endswith("\n"):
                 self.counts["torn_log_rows"] += 1
+            header_commas = None
             for line in text.splitlines():
+                if line.startswith("t_s"):
+                    header_commas = line.count(",")   # every row has the header's cells
                 if line.startswith("#") or line.startswith("t_s"):
                     continue
-                if line.count(",") != 9:
+                if line.count(",") != header_commas:
                     self.counts["torn_log_rows"] += 1
                     continue
                 times.append(float(line.split(",", 1)[0]))
