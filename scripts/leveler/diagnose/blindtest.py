@@ -343,6 +343,8 @@ def run_form_case(sim, top, seed, spec, index, extra, force=(None, None)):
     or a mis-set rig with no effect."""
     spec = dict(spec, form_id=spec.get("form_id", 0))
     system, kind = case_kind(seed, spec["slot"])
+    if spec["family"] == "misset":
+        system = "900lb"    # rigs that differ from thesis-900lb in one parameter (issue 21)
     system, kind = force[0] or system, force[1] or kind
     folder = os.path.join(top, f"{spec['family']}-seed{seed}-{index:02d}")
     logs = os.path.join(folder, "logs")
@@ -559,7 +561,7 @@ def main_families(a):
     rc, out = 0, {}
     if "present" in fams:
         argv = ["--seeds", str(a.seeds), "--first-seed", str(a.first_seed), "--keep", os.path.join(top, "present"),
-                "--pairs", str(a.pairs)] + (["--fast"] if a.fast else []) + (["--check"] if a.check else [])
+                "--pairs", str(a.pairs), "--cases", a.cases] + (["--fast"] if a.fast else []) + (["--check"] if a.check else [])
         rc = main(argv + (["--json", a.json + ".present.json"] if a.json else []))
     sim = make_simulator()
     extra = ["--fast"] if a.fast else []
