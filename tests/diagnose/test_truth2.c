@@ -28,17 +28,24 @@ enum {
     LEAK_POROUS, SENSOR_QUANT = 161, SENSOR_DRIFT, UNKNOWN_CLEARANCE = 191, UNKNOWN_STIFFNESS, UNKNOWN_CREEP
 };
 
+/* A form of the second family (ids above the first family's). */
 static const plant_fx_model *form(int id)
 {
+    assert_true(id > 100);
     const plant_fx_model *m = plant_fx_find(truth2_catalogue, truth2_catalogue_count, id);
     assert_non_null(m);
     return m;
 }
 
-static plant_params thesis(void)
+/* The thesis's 900 lb plant; isothermal = true: n = 1, Z = 1 (P V / (R T) is the gas's mass). */
+static plant_params thesis(bool isothermal)
 {
     plant_config cfg;
     plant_config_defaults(&cfg);
+    if (isothermal) {
+        cfg.plant.polytropic_n = 1.0;
+        cfg.plant.compressibility = 1.0;
+    }
     return cfg.plant;
 }
 
@@ -100,7 +107,7 @@ static void test_every_form_stays_finite_in_closed_loop(void **state)
 {
     (void)state;
     assert_int_equal(N_DRAWS, truth2_catalogue_count);
-    plant_params p = thesis();
+    plant_params p = thesis(false);
     static plant_fx f;
     for (int i = 0; i < N_DRAWS; i++)
         for (int end = 0; end < 2; end++) {
@@ -163,7 +170,7 @@ static void test_nominal_equivalent_is_the_nominal_plant(void **state)
         {SENSOR_QUANT, {0.0, 0.0, 0.0, 0.0}}, {SENSOR_DRIFT, {0.0, 0.0, 0.0, 0.0}}, {UNKNOWN_CLEARANCE, {0.0}},
         {UNKNOWN_STIFFNESS, {0.0}}, {UNKNOWN_CREEP, {0.0, 1.0}},
     };
-    plant_params p = thesis();
+    plant_params p = thesis(false);
     for (size_t i = 0; i < sizeof zero / sizeof zero[0]; i++) {
         double dev[3];
         against_nominal(&p, zero[i].id, zero[i].q, 4, dev);
@@ -176,9 +183,7 @@ static void test_limits_are_the_nominal_plant(void **state)
 {
     (void)state;
     /* a wall exchanging heat at once with an infinite capacity: the isothermal plant (n = 1, Z = 1) */
-    plant_params iso = thesis();
-    iso.polytropic_n = 1.0;
-    iso.compressibility = 1.0;
+    plant_params iso = thesis(true);
     static const double wall[PLANT_FX_MAX_PARAMS] = {0.001, 1e6, 1e4}, hot[PLANT_FX_MAX_PARAMS] = {1.0, 0.5, 0.001};
     double dev[3];
     against_nominal(&iso, THERMAL_WALL, wall, 4, dev);
@@ -190,7 +195,7 @@ static void test_limits_are_the_nominal_plant(void **state)
     against_nominal(&iso, THERMAL_WALL, slow, 4, dev);
     assert_true(dev[1] > 5000.0);
     /* a pipe of wide bores is one lumped node, wherever its transducer sits */
-    plant_params p = thesis();
+    plant_params p = thesis(false);
     static const double wide[PLANT_FX_MAX_PARAMS] = {8e-3, 1.0, 1.0}, hose[PLANT_FX_MAX_PARAMS] = {1e-5, 8e-3, 1.0};
     against_nominal(&p, LINE_SEGMENTS, wide, 4, dev);
     assert_true(dev[0] < 0.2e-3 && dev[1] < 2000.0 && dev[2] < 2000.0);
@@ -213,9 +218,7 @@ static double gas_mass(const plant_fx *f, int id)
 static void test_mass_is_conserved(void **state)
 {
     (void)state;
-    plant_params p = thesis();
-    p.polytropic_n = 1.0;
-    p.compressibility = 1.0;
+    plant_params p = thesis(true);
     p.init_p_pipe_pa = 3e5; /* the spring valve opens onto a pipe well below the spring */
     static plant_fx f;
     /* a leak: what the spring loses is the integrated leak flow (AUX) */
@@ -262,7 +265,7 @@ static void test_mass_is_conserved(void **state)
 static void test_sensor_forms_report_as_described(void **state)
 {
     (void)state;
-    plant_params p = thesis();
+    plant_params p = thesis(false);
     static plant_fx f;
     static const double quant[PLANT_FX_MAX_PARAMS] = {0.1, 0.1, 1e-3, 2000.0},
                         drift[PLANT_FX_MAX_PARAMS] = {3e-3, 1e4, 100.0, 0.05};
