@@ -23,6 +23,15 @@ of a run repeat one. Scored "both among the top two": the combination the
 diagnosis kept, else its ranked combination (the leader and the effect that
 best explains what the leader leaves).
 
+Other truth families (--family; host_sim/blindtest/README.md): `offform`, forms of the
+seven effects written from the physics alone, apart from the candidates (truth2.c,
+truth2.json; measure on them, never tune); `unknown`, effects outside the catalogue
+(right: no catalogued effect named); `misset`, rigs that differ from thesis-900lb in one
+nominal parameter and have no effect (right: no effect named and, when the diagnosis
+reports a `calibration`, the parameter among those it moved); `all`. Each family is
+reported with its confusion matrix, hit rate, median held-out shrink when right, false
+effects and a line per form, and the stated `confidence` levels in a reliability table.
+
 Targets (docs/diagnosis.md): >= 95 % named right, median shrink >= 85 % when
 right, no effect named in a `none` case; pairs: both among the top two in
 >= 80 % (8 of 10).
