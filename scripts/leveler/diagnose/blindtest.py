@@ -399,6 +399,9 @@ def case_right(r):
     return r["verdict"] == r["truth"]
 
 
+COLUMN = {"truth not among them": "la-miss"}   # look-alikes reported, the truth not among them
+
+
 def family_report(results):
     """Lines of a family's report: confusion matrix, hit rate, median shrink when right,
     false effects, per form; for misset whether an effect / the parameter was named."""
@@ -409,7 +412,7 @@ def family_report(results):
     named = CASES + sorted({r["verdict"] for r in results} - set(CASES))
     lines = [f"== family {fam}: {sum(r['right'] for r in results)}/{len(results)} right "
              f"({100.0 * sum(r['right'] for r in results) / len(results):.0f}%)",
-             "truth \\ named  " + " ".join(f"{c[:7]:>7}" for c in named)]
+             "truth \\ named  " + " ".join(f"{COLUMN.get(c, c)[:7]:>7}" for c in named)]
     for t in truths:
         lines.append(f"{t:<15}" + " ".join(f"{sum(1 for r in results if r['truth'] == t and r['verdict'] == c):>7}"
                                            for c in named))
@@ -428,10 +431,27 @@ def family_report(results):
             extra = "  param named: " + ",".join("?" if r["calibration"] is None else
                                                  ("yes" if r["param_named"] else "no") for r in rs)
         lines.append(f"{form:<22}{rs[0]['truth']:<15}{sum(r['right'] for r in rs):>3}/{len(rs):<2} "
-                     f"{(f'{np.median(sh):.1f}%' if sh else '-'):>14}  "
-                     f"{', '.join(r['verdict'] + ('+' + r['effects'][1] if len(r['effects']) > 1 else '') for r in rs)}"
-                     f"{extra}")
+                     f"{(f'{np.median(sh):.1f}%' if sh else '-'):>14}  {', '.join(_named(r) for r in rs)}{extra}")
     return lines
+
+
+def _named(r):
+    """What a case's diagnosis named: its effect, a kept second, look-alikes and the verdict after them."""
+    out = r["named"] + ("+" + r["effects"][1] if len(r["effects"]) > 1 else "")
+    if r["lookalikes"]:
+        out += f" [look-alikes {'/'.join(r['lookalikes'])} -> {r['verdict']}]"
+    return out
+
+
+def print_report(path):
+    """The reports of a saved --json of the other families, again (--report)."""
+    with open(path) as fh:
+        results = json.load(fh)["results"]
+    for fam in FAMILIES:
+        rs = [r for r in results if r.get("family") == fam]
+        if rs:
+            print("\n".join(family_report(rs)) + "\n")
+    print("\n".join(reliability(results)))
 
 
 def reliability(results):
@@ -505,7 +525,11 @@ def main(argv=None):
                          "written from the physics alone, truth2.json), unknown (effects outside the "
                          "catalogue), misset (one nominal parameter mis-set, no effect), all")
     ap.add_argument("--forms", help="offform/unknown/misset: comma-separated subset of forms")
+    ap.add_argument("--report", metavar="FILE", help="print the family reports of a saved --json again and stop")
     a = ap.parse_args(argv)
+    if a.report:
+        print_report(a.report)
+        return 0
     if a.family != "present":
         return main_families(a)
     cases = [c for c in a.cases.split(",") if c]
