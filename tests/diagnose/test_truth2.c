@@ -73,6 +73,9 @@ static void closed_loop(plant_fx *f)
         plant_fx_set_inputs(f, &in);
         plant_fx_advance(f, 0.01, 2);
         assert_finite(f);
+        if (!(f->pl.x[PLANT_X_P2] > 0.5 * f->pl.p.ambient_pa && f->pl.x[PLANT_X_P2] < 3e6))
+            print_message("t %g s: P2 %g Pa, P1 %g Pa, y %g m, V2 %g m3\n", t, f->pl.x[PLANT_X_P2], f->pl.x[PLANT_X_P1],
+                          f->pl.x[PLANT_X_Y], f->pl.x[PLANT_X_V2]);
         assert_true(f->pl.x[PLANT_X_P2] > 0.5 * f->pl.p.ambient_pa && f->pl.x[PLANT_X_P2] < 3e6);
     }
 }
@@ -112,6 +115,20 @@ static void test_every_form_stays_finite_in_closed_loop(void **state)
     for (int i = 0; i < N_DRAWS; i++)
         for (int end = 0; end < 2; end++) {
             assert_int_equal(plant_fx_init(&f, &p, form(draws[i].id), end ? draws[i].hi : draws[i].lo), 0);
+            closed_loop(&f);
+        }
+}
+
+/* ... and at the ends of the ranges it accepts (the generated table's). */
+static void test_every_form_stays_finite_at_its_range_ends(void **state)
+{
+    (void)state;
+    plant_params p = thesis(false);
+    static plant_fx f;
+    for (int i = 0; i < truth2_catalogue_count; i++)
+        for (int end = 0; end < 2; end++) {
+            const plant_fx_model *m = &truth2_catalogue[i];
+            assert_int_equal(plant_fx_init(&f, &p, m, end ? m->hi : m->lo), 0);
             closed_loop(&f);
         }
 }
@@ -287,6 +304,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_every_form_stays_finite_in_closed_loop),
+        cmocka_unit_test(test_every_form_stays_finite_at_its_range_ends),
         cmocka_unit_test(test_nominal_equivalent_is_the_nominal_plant),
         cmocka_unit_test(test_limits_are_the_nominal_plant),
         cmocka_unit_test(test_mass_is_conserved),
