@@ -23,6 +23,15 @@ of a run repeat one. Scored "both among the top two": the combination the
 diagnosis kept, else its ranked combination (the leader and the effect that
 best explains what the leader leaves).
 
+Other truth families (--family; host_sim/blindtest/README.md): `offform`, forms of the
+seven effects written from the physics alone, apart from the candidates (truth2.c,
+truth2.json; measure on them, never tune); `unknown`, effects outside the catalogue
+(right: no catalogued effect named); `misset`, rigs that differ from thesis-900lb in one
+nominal parameter and have no effect (right: no effect named and, when the diagnosis
+reports a `calibration`, the parameter among those it moved); `all`. Each family is
+reported with its confusion matrix, hit rate, median held-out shrink when right, false
+effects and a line per form, and the stated `confidence` levels in a reliability table.
+
 Targets (docs/diagnosis.md): >= 95 % named right, median shrink >= 85 % when
 right, no effect named in a `none` case; pairs: both among the top two in
 >= 80 % (8 of 10).
@@ -39,8 +48,10 @@ import numpy as np
 
 import leveler
 from leveler import cli as leveler_cli
+from leveler import config as leveler_config
 from leveler import thesis
 
+from . import cplant
 from . import design
 from . import effects as fx
 from . import runs
@@ -78,6 +89,44 @@ def _truth_catalogue():
 
 TRUTH = _truth_catalogue()
 
+# The second truth family (host_sim/blindtest/truth2.json, README.md there): forms written
+# from the physics alone, apart from the candidates, never tuned against. "offform": forms
+# of the catalogue's effects; "unknown": effects outside the catalogue.
+TRUTH2_CATALOGUE = os.path.join(os.path.dirname(TRUTH_CATALOGUE), "truth2.json")
+with open(TRUTH2_CATALOGUE) as _fh:
+    FORMS = {e["name"]: e for e in json.load(_fh)["effects"]}
+# "misset": rigs that differ from the system's config in one nominal parameter only, no
+# unmodelled effect: (name, the parameter as the report names it, [(section, SI key)], factor
+# or ("=", value)). The log is made with the changed config, diagnosed with the system's own.
+MISSET = [
+    ("capacity-15%", "compressor_capacity", [("compressor", "capacity_m3_per_rad")], 0.85),
+    ("damping*1.5", "damping", [("platform", "damping_up_n_s_per_m"), ("platform", "damping_down_n_s_per_m")], 1.5),
+    ("spring_valve_cd-25%", "spring_valve_cd", [("spring_valve", "cd_into_spring"),
+                                                ("spring_valve", "cd_out_of_spring")], 0.75),
+    ("spring_volume+15%", "spring_volume", [("spring", "volume_m3")], 1.15),
+    ("pipe_volume+30%", "pipe_volume", [("pipe", "volume_m3")], 1.3),
+    ("vent_cd-25%", "vent_valve_cd", [("vent_valve", "cd")], 0.75),
+    ("polytropic_n=1.0", "polytropic_exponent", [("ambient", "polytropic_exponent")], ("=", 1.0)),
+    ("polytropic_n=1.4", "polytropic_exponent", [("ambient", "polytropic_exponent")], ("=", 1.4)),
+]
+FAMILIES = ("present", "offform", "unknown", "misset")
+
+
+def family_specs(family):
+    """The cases of a family other than `present`: dicts with family, form, truth (the
+    effect the answer should be: a catalogue effect, "unknown" or "none") and, for a
+    form, its truth2 id; for a misset rig the parameter and the config change."""
+    if family in ("offform", "unknown"):
+        return [{"family": family, "form": n, "truth": e["effect"], "form_id": e["id"]}
+                for n, e in FORMS.items() if e["family"] == family]
+    return [{"family": "misset", "form": n, "truth": "none", "param": par, "keys": keys, "change": ch}
+            for n, par, keys, ch in MISSET]
+
+
+def form_params(form, rng):
+    """A form's random strength within its "draw" range (truth2.json)."""
+    return [float(rng.uniform(*p["draw"])) for p in FORMS[form]["params"]]
+
 
 def truth_params(effect, rng):
     """Random strength within physical ranges (truth.json "draw"), in the truth variant's parameter order."""
@@ -112,15 +161,26 @@ def pair_case(seed, j, per_seed):
     return PAIRS[((seed - 1) * per_seed + j) * PAIR_STRIDE % len(PAIRS)]
 
 
-def rig_config(folder, system, seed):
+def rig_config(folder, system, seed, misset=None):
     """The system's config with a count of sensor noise the firmware reads, on a rig run
     as the thesis's was: no chatter fault stops algorithm 2's compressor chattering at the
-    charge limit (a rig with the product default would go safe and show no effect)."""
+    charge limit (a rig with the product default would go safe and show no effect).
+    misset: a MISSET case (family_specs): its one nominal parameter changed, the rest the
+    system's (resolved by the C loader)."""
     path = os.path.join(folder, "rig.ini")
+    base = os.path.join(CONFIG_DIR, SYSTEMS[system][0] + ".ini")
+    sections = {"sensors": [f"noise_counts = {FIRMWARE_NOISE_COUNTS}", f"noise_seed = {seed}"],
+                "controller": ["chatter_max_per_min = 0"]}
+    if misset:
+        resolved = leveler_config.resolved(base)
+        for sec, key in misset["keys"]:
+            ch = misset["change"]
+            value = ch[1] if isinstance(ch, tuple) else resolved[sec][key] * ch
+            sections.setdefault(sec, []).append(f"{key} = {value!r}")
     with open(path, "w") as fh:
-        fh.write(f"[config]\ninclude = {os.path.join(CONFIG_DIR, SYSTEMS[system][0] + '.ini')}\n"
-                 f"name = blindtest-rig\n\n[sensors]\nnoise_counts = {FIRMWARE_NOISE_COUNTS}\n"
-                 f"noise_seed = {seed}\n\n[controller]\nchatter_max_per_min = 0\n")
+        fh.write(f"[config]\ninclude = {base}\nname = blindtest-rig\n")
+        for sec, lines in sections.items():
+            fh.write(f"\n[{sec}]\n" + "".join(f"{x}\n" for x in lines))
     return path
 
 
@@ -140,12 +200,28 @@ def quantise(v, span, bits):
     return np.round(v / lsb) * lsb
 
 
-def write_truth_log(sim, path, rig, system, steps, end, effect, params, kind, rng, writes=None):
+def generate_form(sim, rig, t, load, form_id, params, writes=None):
+    """Closed loop with a form of the second family (truth2_simulate in
+    libleveler_truth.so) from rest, as CPlant.generate runs the first family's."""
+    if getattr(sim, "truth2_fn", None) is None:
+        sim.truth2_lib = cplant._library(cplant.find_truth_library())
+        sim.truth2_fn = cplant._bind(sim.truth2_lib.truth2_simulate)
+    cplant._set_writes(sim.truth2_lib, writes)
+    kind, values = ([form_id], [params]) if form_id else ([], [])
+    return sim._call(rig, np.round(np.asarray(t, dtype=float), 2), load, None, kind, values,
+                     [np.nan] * 4 + [0.0], fn=sim.truth2_fn)
+
+
+def write_truth_log(sim, path, rig, system, steps, end, effect, params, kind, rng, writes=None, form_id=None):
     """Run the truth closed loop on the 10 ms tick and write the log the rig would
-    (writes: a schedule's mode / manual rows, made through the firmware's register map)."""
+    (writes: a schedule's mode / manual rows, made through the firmware's register map;
+    form_id: a form of the second family in place of the effect's first-family truth)."""
     t = tick_grid(end)
     load = design.schedule_loads(t, steps)
-    tr = sim.generate(rig, t, load, effect, params, 0, **({"writes": writes} if writes else {}))
+    if form_id is not None:
+        tr = generate_form(sim, rig, t, load, form_id, params, writes)
+    else:
+        tr = sim.generate(rig, t, load, effect, params, 0, **({"writes": writes} if writes else {}))
     ts = log_times(rng, kind, end)
     idx = np.clip(np.searchsorted(t, ts + 1e-9, side="right") - 1, 0, len(t) - 1)  # in force at ts
     bits = LOG_KINDS[kind][3]
@@ -188,17 +264,18 @@ def diagnose_blind(folder, out, config, extra, runs_=("cal1", "cal2"), holdout="
         return json.load(fh)
 
 
-def run_experiment(sim, folder, d, case, params, system, kind, seed, extra):
+def run_experiment(sim, folder, d, case, params, system, kind, seed, extra, spec=None):
     """Look-alikes: run the proposed experiment on the same truth and score the
     look-alikes, fitted on the calibration runs as before, on it: the experiment
     was designed from their predictions, so it is the held-out run that decides.
-    Returns the new verdict."""
+    Returns the new verdict. spec: a case of another family (family_specs)."""
     logs = os.path.join(folder, "logs")
     steps, end = read_schedule(os.path.join(folder, "diagnosis", "experiment.csv"))
-    rng = np.random.default_rng(seed * 1000 + CASES.index(case) + 500)   # single cases only
+    slot = CASES.index(case) if spec is None else spec["slot"]
+    rng = np.random.default_rng(seed * 1000 + slot + 500)   # single cases only
     rig = os.path.join(folder, "rig.ini")
     write_truth_log(sim, os.path.join(logs, "experiment.csv"), rig, system, steps, end, case, params, kind, rng,
-                    design.schedule_writes(steps))
+                    design.schedule_writes(steps), form_id=None if spec is None else spec["form_id"])
     group = ",".join(d["cannot_tell_apart"])
     d2 = diagnose_blind(logs, os.path.join(folder, "diagnosis-experiment"), SYSTEMS[system][0],
                         list(extra) + ["--effects", group], holdout="experiment")
@@ -235,6 +312,160 @@ def run_case(sim, top, seed, case, index, extra, force=(None, None), slot=None):
                                  if case in r["lookalikes"] else "truth not among them")
         r["verdict"] = r["after_experiment"]
     return r
+
+
+def _calibration_names(cal):
+    """The nominal parameters a diagnosis's `calibration` field says moved (h21d's
+    calibration stage; read loosely: a list of entries or a dict by name, an entry
+    counting as moved unless it says moved/identifiable false)."""
+    if not cal:
+        return []
+    if isinstance(cal, dict) and isinstance(cal.get("moved"), list):
+        return [str(x.get("name", x) if isinstance(x, dict) else x) for x in cal["moved"]]
+    items = cal.get("parameters", cal) if isinstance(cal, dict) else cal
+    if isinstance(items, dict):
+        items = [dict(v, name=k) if isinstance(v, dict) else {"name": k, "value": v} for k, v in items.items()]
+    out = []
+    for x in items if isinstance(items, list) else []:
+        if isinstance(x, dict) and x.get("moved", True) is not False:
+            out.append(str(x.get("name") or x.get("key") or x.get("parameter") or x))
+    return out
+
+
+def confidence_level(d):
+    """The diagnosis's stated confidence as a level (a string), or None without one."""
+    c = d.get("confidence")
+    if c is None:
+        return None
+    if isinstance(c, dict):
+        c = c.get("level", c.get("probability"))
+    return str(c)
+
+
+def param_named(names, param):
+    """Whether the misset parameter is among the calibrated ones (its words in a name)."""
+    words = param.split("_")
+    return any(all(w in n.lower() for w in words) for n in names)
+
+
+def run_form_case(sim, top, seed, spec, index, extra, force=(None, None)):
+    """One case of another family (family_specs): a form of the second truth family,
+    or a mis-set rig with no effect."""
+    spec = dict(spec, form_id=spec.get("form_id", 0))
+    system, kind = case_kind(seed, spec["slot"])
+    if spec["family"] == "misset":
+        system = "900lb"    # rigs that differ from thesis-900lb in one parameter (issue 21)
+    system, kind = force[0] or system, force[1] or kind
+    folder = os.path.join(top, f"{spec['family']}-seed{seed}-{index:02d}")
+    logs = os.path.join(folder, "logs")
+    os.makedirs(logs, exist_ok=True)
+    rng = np.random.default_rng(seed * 1000 + spec["slot"])
+    params = form_params(spec["form"], rng) if spec["form_id"] else []
+    rig = rig_config(folder, system, seed, spec if spec["family"] == "misset" else None)
+    for name, steps, end in schedules(rng, system):
+        write_truth_log(sim, os.path.join(logs, f"{name}.csv"), rig, system, steps, end, "none", params, kind,
+                        rng, form_id=spec["form_id"])
+    with open(os.path.join(folder, "label.sealed.json"), "w") as fh:
+        json.dump({k: v for k, v in spec.items()} | {"truth_params": params, "seed": seed, "system": system,
+                                                      "log": kind}, fh)
+    t0 = time.perf_counter()
+    d = diagnose_blind(logs, os.path.join(folder, "diagnosis"), SYSTEMS[system][0], extra)
+    cal = _calibration_names(d.get("calibration"))
+    r = {"family": spec["family"], "form": spec["form"], "seed": seed, "truth": spec["truth"], "system": system,
+         "log": kind, "named": d["effect"], "verdict": d["effect"], "shrink_pct": d["shrink_pct"],
+         "margin_pct": d.get("margin_pct"), "seconds": time.perf_counter() - t0, "truth_params": params,
+         "lookalikes": d.get("cannot_tell_apart", []), "effects": d.get("effects", []),
+         "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]],
+         "calibration": d.get("calibration"), "calibrated": cal, "confidence": confidence_level(d),
+         "unexplained": d.get("unexplained", d.get("not_explained"))}
+    if spec["family"] == "misset":
+        r["param"] = spec["param"]
+        r["param_named"] = param_named(cal, spec["param"])
+    if r["lookalikes"] and spec["truth"] in fx.NAMES:
+        r["after_experiment"] = (run_experiment(sim, folder, d, "none", params, system, kind, seed, extra, spec)
+                                 if spec["truth"] in r["lookalikes"] else "truth not among them")
+        r["verdict"] = r["after_experiment"]
+    r["right"] = case_right(r)
+    return r
+
+
+def case_right(r):
+    """offform: the form's effect named; unknown: no catalogued effect named (none, or
+    the tool's own "not explained"); misset: no effect named (and, when the diagnosis
+    calibrates, the parameter named)."""
+    if r["family"] == "unknown":
+        return r["verdict"] not in fx.NAMES and not any(e in fx.NAMES for e in r["effects"])
+    if r["family"] == "misset":
+        return r["verdict"] == "none" and (r["calibration"] is None or r["param_named"])
+    return r["verdict"] == r["truth"]
+
+
+COLUMN = {"truth not among them": "la-miss"}   # look-alikes reported, the truth not among them
+
+
+def family_report(results):
+    """Lines of a family's report: confusion matrix, hit rate, median shrink when right,
+    false effects, per form; for misset whether an effect / the parameter was named."""
+    if not results:
+        return []
+    fam = results[0]["family"]
+    truths = list(dict.fromkeys(r["truth"] for r in results))
+    named = CASES + sorted({r["verdict"] for r in results} - set(CASES))
+    lines = [f"== family {fam}: {sum(r['right'] for r in results)}/{len(results)} right "
+             f"({100.0 * sum(r['right'] for r in results) / len(results):.0f}%)",
+             "truth \\ named  " + " ".join(f"{COLUMN.get(c, c)[:7]:>7}" for c in named)]
+    for t in truths:
+        lines.append(f"{t:<15}" + " ".join(f"{sum(1 for r in results if r['truth'] == t and r['verdict'] == c):>7}"
+                                           for c in named))
+    right_sh = [r["shrink_pct"] for r in results if r["right"] and r["truth"] not in ("none", "unknown")]
+    if right_sh:
+        lines.append(f"median held-out shrink when right: {np.median(right_sh):.1f}%")
+    false_eff = sum(1 for r in results if r["truth"] in ("none", "unknown") and r["verdict"] in fx.NAMES)
+    second = sum(1 for r in results if len(r["effects"]) > 1)
+    lines.append(f"catalogued effect named where there is none of them: {false_eff}; a second effect kept: {second}")
+    lines.append(f"{'form':<22}{'truth':<15}{'right':>6} {'median shrink':>14}  named")
+    for form in dict.fromkeys(r["form"] for r in results):
+        rs = [r for r in results if r["form"] == form]
+        sh = [r["shrink_pct"] for r in rs if r["right"]]
+        extra = ""
+        if fam == "misset":
+            extra = "  param named: " + ",".join("?" if r["calibration"] is None else
+                                                 ("yes" if r["param_named"] else "no") for r in rs)
+        lines.append(f"{form:<22}{rs[0]['truth']:<15}{sum(r['right'] for r in rs):>3}/{len(rs):<2} "
+                     f"{(f'{np.median(sh):.1f}%' if sh else '-'):>14}  {', '.join(_named(r) for r in rs)}{extra}")
+    return lines
+
+
+def _named(r):
+    """What a case's diagnosis named: its effect, a kept second, look-alikes and the verdict after them."""
+    out = r["named"] + ("+" + r["effects"][1] if len(r["effects"]) > 1 else "")
+    if r["lookalikes"]:
+        out += f" [look-alikes {'/'.join(r['lookalikes'])} -> {r['verdict']}]"
+    return out
+
+
+def print_report(path):
+    """The reports of a saved --json of the other families, again (--report)."""
+    with open(path) as fh:
+        results = json.load(fh)["results"]
+    for fam in FAMILIES:
+        rs = [r for r in results if r.get("family") == fam]
+        if rs:
+            print("\n".join(family_report(rs)) + "\n")
+    print("\n".join(reliability(results)))
+
+
+def reliability(results):
+    """For each stated confidence level: right of how many (cases with a level only)."""
+    levels = {}
+    for r in results:
+        if r.get("confidence") is not None:
+            n, k = levels.get(r["confidence"], (0, 0))
+            levels[r["confidence"]] = (n + 1, k + bool(r["right"]))
+    if not levels:
+        return ["reliability: the diagnosis states no confidence (no `confidence` field)"]
+    return ["reliability (confidence level: right / cases)"] + [
+        f"  {lvl:<12} {k}/{n} ({100.0 * k / n:.0f}%)" for lvl, (n, k) in sorted(levels.items())]
 
 
 def confusion(results, key="verdict"):
@@ -292,7 +523,18 @@ def main(argv=None):
     ap.add_argument("--pairs", type=int, default=2, help="pair cases per seed (default 2)")
     ap.add_argument("--min-pairs", type=float, default=80.0,
                     help="--check: least %% of pair cases with both effects among the top two")
+    ap.add_argument("--family", choices=FAMILIES + ("all",), default="present",
+                    help="truth family: present (the first family, truth.json; default), offform (forms "
+                         "written from the physics alone, truth2.json), unknown (effects outside the "
+                         "catalogue), misset (one nominal parameter mis-set, no effect), all")
+    ap.add_argument("--forms", help="offform/unknown/misset: comma-separated subset of forms")
+    ap.add_argument("--report", metavar="FILE", help="print the family reports of a saved --json again and stop")
     a = ap.parse_args(argv)
+    if a.report:
+        print_report(a.report)
+        return 0
+    if a.family != "present":
+        return main_families(a)
     cases = [c for c in a.cases.split(",") if c]
     for c in cases:
         if c not in CASES:
@@ -346,6 +588,50 @@ def main(argv=None):
             and not s["false_in_none"] and (not pair_results or s["pairs_hit_pct"] >= a.min_pairs)
         return 0 if ok else 1
     return 0
+
+
+def main_families(a):
+    """--family other than present (all: present first, as main runs it, then the rest)."""
+    fams = list(FAMILIES) if a.family == "all" else [a.family]
+    top = a.keep or tempfile.mkdtemp(prefix="leveler-blindtest-")
+    os.makedirs(top, exist_ok=True)
+    rc, out = 0, {}
+    if "present" in fams:
+        argv = ["--seeds", str(a.seeds), "--first-seed", str(a.first_seed), "--keep", os.path.join(top, "present"),
+                "--pairs", str(a.pairs), "--cases", a.cases] + (["--fast"] if a.fast else []) + (["--check"] if a.check else [])
+        rc = main(argv + (["--json", a.json + ".present.json"] if a.json else []))
+    sim = make_simulator()
+    extra = ["--fast"] if a.fast else []
+    forms = set(a.forms.split(",")) if a.forms else None
+    results = []
+    t_all = time.perf_counter()
+    for fam in [f for f in fams if f != "present"]:
+        specs = family_specs(fam)
+        for i, sp in enumerate(specs):
+            sp["slot"] = 100 * (FAMILIES.index(fam)) + i
+        specs = [sp for sp in specs if forms is None or sp["form"] in forms]
+        fam_res = []
+        for seed in range(a.first_seed, a.first_seed + a.seeds):
+            for sp in specs:
+                r = run_form_case(sim, top, seed, sp, len(results) + len(fam_res), extra, (a.system, a.log))
+                fam_res.append(r)
+                look = f" look-alikes {r['lookalikes']} -> {r.get('after_experiment')}" if r["lookalikes"] else ""
+                cal = f" calibrated {r['calibrated']}" if r["calibration"] is not None else ""
+                print(f"{'ok ' if r['right'] else 'MISS'} {fam} seed {seed} {r['system']:<11} {r['log']:<5} "
+                      f"form {r['form']:<20} truth {r['truth']:<15} named {r['named']:<15} "
+                      f"held-out shrink {r['shrink_pct']:6.1f}% confidence {r['confidence']}{cal} "
+                      f"({r['seconds']:.0f} s){look}  top: {r['ranking'][:3]}", flush=True)
+        results += fam_res
+        print()
+        print("\n".join(family_report(fam_res)))
+        out[fam] = {"right": sum(r["right"] for r in fam_res), "cases": len(fam_res)}
+    print()
+    print("\n".join(reliability(results)))
+    print(f"total {time.perf_counter() - t_all:.0f} s; logs and diagnoses in {top}")
+    if a.json:
+        with open(a.json, "w") as fh:
+            json.dump({"results": results, "families": out}, fh, indent=2, default=str)
+    return rc
 
 
 if __name__ == "__main__":
