@@ -9,6 +9,7 @@
 #   make soak       the rig's 10-minute chaos soak (CTest label soak; a 60 s one runs in make test)
 #   make blindtest  the full blind test of the sim-to-real diagnosis
 #   make flash      write build/stm32f103/leveler.bin to the board (OpenOCD or st-flash)
+#   make package    the rig host's Debian package -> build/package/leveler-rig_<version>_<arch>.deb
 #   make clean
 
 JOBS      ?= $(shell nproc 2>/dev/null || echo 2)
@@ -51,6 +52,12 @@ pil: bootstrap firmware
 	$(call configure,build/pil,-DCMAKE_BUILD_TYPE=Release)
 	$(CMAKE) --build build/pil -j $(JOBS)
 	$(CMAKE) --build build/pil --target run-pil
+
+package: bootstrap
+	@mkdir -p build
+	$(call configure,build/package,-DCMAKE_BUILD_TYPE=Release)
+	$(CMAKE) --build build/package -j $(JOBS)
+	cd build/package && cpack -G DEB
 
 flash: firmware
 	$(CMAKE) --build build/stm32f103 --target flash
