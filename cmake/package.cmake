@@ -6,8 +6,8 @@
 # The rig host's layout is Debian's: programs in /usr/bin, the config in
 # /etc/leveler (absolute: the unit names it), the unit under lib/systemd. The
 # prefix defaults to /usr so that the unit installed with `cmake --install`
-# names the same paths as the package's (set -DCMAKE_INSTALL_PREFIX at
-# configure time for another prefix: the unit is written then).
+# names the same paths as the package's; the unit is written at install time
+# for the prefix of that install (cmake/install_unit.cmake).
 if(CMAKE_INSTALL_PREFIX_INITIALIZED_TO_DEFAULT)
   set(CMAKE_INSTALL_PREFIX /usr CACHE PATH "install prefix" FORCE)
 endif()
@@ -22,21 +22,16 @@ foreach(prog IN LISTS LEVELER_PROGRAMS)
 endforeach()
 
 set(RIG_DIR ${PROJECT_SOURCE_DIR}/boards/linux-rig)
-file(READ ${RIG_DIR}/leveler-rig.service LEVELER_UNIT)
-string(REGEX REPLACE "^# systemd unit for leveler-rig. Install:\n(#   [^\n]*\n)*"
-       "# systemd unit for leveler-rig, installed by the leveler-rig package (cmake/package.cmake).\n"
-       LEVELER_UNIT "${LEVELER_UNIT}")
-string(REPLACE "/usr/local/bin/" "${CMAKE_INSTALL_FULL_BINDIR}/" LEVELER_UNIT "${LEVELER_UNIT}")
-string(REPLACE "/usr/local/share/doc/leveler/" "${CMAKE_INSTALL_FULL_DOCDIR}/" LEVELER_UNIT "${LEVELER_UNIT}")
-file(WRITE ${CMAKE_BINARY_DIR}/package/leveler-rig.service "${LEVELER_UNIT}")
-set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS ${RIG_DIR}/leveler-rig.service)
-
-# systemd and udev files under <prefix>/lib (/usr/lib on Debian 12, merged /usr)
-install(FILES ${CMAKE_BINARY_DIR}/package/leveler-rig.service DESTINATION lib/systemd/system COMPONENT rig)
+install(CODE "set(LEVELER_UNIT_SOURCE \"${RIG_DIR}/leveler-rig.service\")
+set(LEVELER_UNIT_BINDIR \"${CMAKE_INSTALL_BINDIR}\")
+set(LEVELER_UNIT_DOCDIR \"${CMAKE_INSTALL_DOCDIR}\")" COMPONENT rig)
+# the unit and the udev rule under <prefix>/lib (/usr/lib on Debian 12, merged /usr)
+install(SCRIPT ${CMAKE_CURRENT_LIST_DIR}/install_unit.cmake COMPONENT rig)
 install(FILES ${RIG_DIR}/60-leveler-gpio.rules DESTINATION lib/udev/rules.d COMPONENT rig)
 install(FILES ${RIG_DIR}/rig.ini DESTINATION ${LEVELER_ETC_DIR} COMPONENT rig)
 install(FILES ${RIG_DIR}/README.md ${RIG_DIR}/stunnel-modbus-security.conf
         DESTINATION ${CMAKE_INSTALL_DOCDIR}/linux-rig COMPONENT rig)
+install(FILES ${LEVELER_REGMAP_TAGS} DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT rig)
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT rig
         FILES_MATCHING PATTERN "*.md")
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/host_sim/configs/ DESTINATION ${CMAKE_INSTALL_DATADIR}/leveler/configs
@@ -46,7 +41,7 @@ set(CPACK_PACKAGE_NAME leveler-rig)
 set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
 set(CPACK_PACKAGE_CONTACT "leveler maintainers <leveler@localhost>")
 set(CPACK_PACKAGE_DESCRIPTION_SUMMARY "air-spring leveling controller: the firmware on a Linux rig host")
-set(CPACK_PACKAGING_INSTALL_PREFIX ${CMAKE_INSTALL_PREFIX})
+set(CPACK_PACKAGING_INSTALL_PREFIX /usr) # a Debian package, whatever this build's own prefix
 set(CPACK_GENERATOR DEB)
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SECTION misc)

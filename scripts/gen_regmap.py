@@ -4,6 +4,7 @@
     gen_regmap.py JSON --header OUT.h --table OUT.c     (run by CMake at build time)
     gen_regmap.py JSON --doc docs/registers.md           (cmake --build B --target regmap-docs)
     gen_regmap.py JSON --doc -                           (print the doc; the drift test)
+    gen_regmap.py JSON --tags OUT.csv                    (the HMI/SCADA tag export, installed with the docs)
 
 Standard library only: the cross build runs it with the system python3.
 Every error names the JSON file, the entry (index and name) and the field.
@@ -289,6 +290,29 @@ def gen_doc(doc, regs, src):
     return "\n".join(out)
 
 
+# 1-based Modbus references as HMI/SCADA tools number the tables (Modicon style).
+REFERENCE_BASE = {"coil": 1, "discrete": 10001, "input": 30001, "holding": 40001}
+
+
+def gen_tags(regs):
+    """The tag export: one CSV row per item, for HMI/SCADA import."""
+    import csv
+    import io
+    out = io.StringIO()
+    w = csv.writer(out, lineterminator="\n")
+    w.writerow(["name", "table", "address_0based", "reference_1based", "function_read", "function_write",
+                "type", "registers", "word_order", "unit", "scale", "access", "range_lo", "range_hi", "description"])
+    writes = {"coil": "05/15", "holding": "06/16"}
+    reads = {"coil": "01", "discrete": "02", "holding": "03", "input": "04"}
+    for r in sorted_regs(regs):
+        words = TYPES[r["type"]][1]
+        w.writerow([r["name"], r["table"], r["address"], REFERENCE_BASE[r["table"]] + r["address"],
+                    reads[r["table"]], writes.get(r["table"], "") if r["access"] == "RW" else "",
+                    r["type"], words, "high word first" if words == 2 else "", r["unit"], r["scale"], r["access"],
+                    r["range"][0], r["range"][1], r["description"]])
+    return out.getvalue()
+
+
 def write_if_changed(path, text):
     if path == "-":
         sys.stdout.write(text)
@@ -309,6 +333,7 @@ def main(argv=None):
     ap.add_argument("--header")
     ap.add_argument("--table")
     ap.add_argument("--doc")
+    ap.add_argument("--tags", help="write the HMI/SCADA tag export (CSV) here")
     ap.add_argument("--source-name", default="firmware/regmap/registers.json",
                     help="path shown in generated files (keeps them independent of the build folder)")
     args = ap.parse_args(argv)
@@ -324,6 +349,8 @@ def main(argv=None):
         write_if_changed(args.table, gen_table(regs, args.source_name))
     if args.doc:
         write_if_changed(args.doc, gen_doc(doc, regs, args.source_name))
+    if args.tags:
+        write_if_changed(args.tags, gen_tags(regs))
     return 0
 
 

@@ -35,7 +35,7 @@ def test_file_list(package):
     for path in ["usr/bin/leveler-rig", "usr/bin/leveler-mbaps", "usr/bin/leveler-plant-server",
                  "usr/bin/leveler-schedule-run", "usr/bin/leveler-sim", "usr/lib/systemd/system/leveler-rig.service",
                  "usr/lib/udev/rules.d/60-leveler-gpio.rules", "etc/leveler/rig.ini",
-                 "usr/share/doc/leveler/linux-rig/README.md", "usr/share/doc/leveler/registers.md",
+                 "usr/share/doc/leveler/linux-rig/README.md", "usr/share/doc/leveler/registers.md", "usr/share/doc/leveler/leveler-tags.csv",
                  "usr/share/leveler/configs/thesis-900lb.ini"]:
         assert (root / path).is_file(), path
     assert os.access(root / "usr/bin/leveler-rig", os.X_OK)

@@ -65,5 +65,28 @@ class Validation(unittest.TestCase):
         self.assertRegex(err, r"registers\.json:\d+: register #\d+ \(mode\)")
 
 
+class TagExport(unittest.TestCase):
+    """The HMI tag export: every item once, Modicon references (coils 1, discrete
+    inputs 10001, input registers 30001, holding registers 40001 for address 0)."""
+
+    def test_every_item_with_its_references(self):
+        import csv
+        import io
+        p = subprocess.run([sys.executable, GEN, os.path.join(ROOT, "firmware", "regmap", "registers.json"),
+                            "--tags", "-"], capture_output=True, text=True, check=True)
+        rows = list(csv.DictReader(io.StringIO(p.stdout)))
+        self.assertEqual(sorted(r["name"] for r in rows), sorted(r["name"] for r in GOOD["registers"]))
+        first = {"coil": 1, "discrete": 10001, "input": 30001, "holding": 40001}
+        for want in GOOD["registers"]:
+            got = next(r for r in rows if r["name"] == want["name"])
+            self.assertEqual(int(got["address_0based"]), want["address"])
+            self.assertEqual(int(got["reference_1based"]), first[want["table"]] + want["address"])
+            self.assertEqual(got["unit"], want["unit"])
+            self.assertEqual(got["word_order"], "high word first" if want["type"] in ("int32", "uint32") else "")
+            self.assertEqual(bool(got["function_write"]), want["access"] == "RW" and want["table"] in ("coil", "holding"))
+        height = next(r for r in rows if r["name"] == "height_um")
+        self.assertEqual((height["reference_1based"], height["registers"]), ("30001", "2"))
+
+
 if __name__ == "__main__":
     unittest.main()

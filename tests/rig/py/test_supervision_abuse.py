@@ -7,6 +7,7 @@ import struct
 import subprocess
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -208,5 +209,39 @@ def test_mbpoll_reads_and_writes(tmp_path, plant, address, host):
         assert c.read_holding_registers(rp.HR_MODE, count=1).registers[0] == rp.MODE_MANUAL
         c.close()
         print(f"mbpoll on {host}: uptime {ms[0]} -> {ms[1]} ms, mode written 2 and read back by pymodbus")
+    finally:
+        rig.stop()
+
+
+def readme_mbpoll_command():
+    """The mbpoll line a user copies from boards/linux-rig/README.md."""
+    readme = Path(__file__).resolve().parents[3] / "boards" / "linux-rig" / "README.md"
+    line = next(l for l in readme.read_text().splitlines() if l.startswith("mbpoll -m tcp"))
+    return line.split("#")[0].split()
+
+
+def test_the_readmes_mbpoll_command_reads_the_right_values(tmp_path, plant):
+    """The README's mbpoll example, run as written (its port replaced, one poll),
+    reads the same height and P2 as pymodbus does; without its word-order flag
+    the same registers read as garbage."""
+    rig = rp.Rig(tmp_path, plant).start()
+    try:
+        cmd = readme_mbpoll_command()
+        cmd[cmd.index("-p") + 1] = str(rig.port)
+        cmd += ["-1", "-o", "2"]
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=10)
+        assert p.returncode == 0, p.stdout + p.stderr
+        got = mbpoll_values(p.stdout)
+        c = rp.connect(rig.port)
+        regs = c.read_input_registers(0, count=4).registers
+        c.close()
+        height_um, p_spring_pa = [struct.unpack(">i", struct.pack(">HH", regs[i], regs[i + 1]))[0] for i in (0, 2)]
+        assert set(got) == {1, 3, 5, 7}, p.stdout          # four 32-bit values, 1-based references
+        assert abs(got[1] - height_um) < 2000 and 0.30e6 < got[1] < 0.50e6, (got, height_um)   # um, platform moves slowly
+        assert abs(got[3] - p_spring_pa) < 20000 and 3e5 < got[3] < 1e6, (got, p_spring_pa)
+        no_b = [a for a in cmd if a != "-B"]
+        garbled = mbpoll_values(subprocess.run(no_b, capture_output=True, text=True, timeout=10).stdout)
+        assert not 0.30e6 < garbled[1] < 0.50e6, garbled     # the flag is what makes it right
+        print(f"README mbpoll: height {got[1]} um, P2 {got[3]} Pa; without -B height reads {garbled[1]}")
     finally:
         rig.stop()
