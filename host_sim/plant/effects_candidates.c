@@ -6,7 +6,7 @@
  *   area            A = A_nom (1 + a0 + a1 d + a2 d^2), d = y - y_ref held within +-50 mm:
  *                   a1 rel/m, a2 rel/m^2, a0 relative
  *   friction        Coulomb N, Stribeck N, Stribeck velocity m/s
- *   valve_dynamics  open delay s, close delay s, ISO 6358 b (0 = eq. 8), outflow C scale
+ *   valve_dynamics  open delay s, close delay s, ISO 6358 b (0 = eq. 8)
  *   line_delay      transport delay s, junction volume change m^3, tube volume behind a laminar
  *                   resistance m^3, that resistance as the tube's time constant s
  *   leak            orifice area m^2 (Cd 1), spring -> ambient
@@ -82,12 +82,14 @@ static void valve_rhs(const plant_fx *f, const double *q, const double *x, doubl
     const plant *pl = &f->pl;
     const plant_params *p = &pl->p;
     double m_s = fl->spring_valve, m_v = fl->vent_valve;
-    if (q[2] > 0.0 || q[3] != 1.0) {
+    /* The discharge coefficients stay the config's: rescaling one is
+     * calibration (calibrate.py), not a valve effect. */
+    if (q[2] > 0.0) {
         double a = pl->spring_valve_area_m2, av = p->vent_valve_cd * pl->vent_valve_area_m2;
-        m_s = pl->in.spring_valve ? plant_fx_two_way(pl, p->spring_valve_cd_in * a, p->spring_valve_cd_out * a * q[3],
+        m_s = pl->in.spring_valve ? plant_fx_two_way(pl, p->spring_valve_cd_in * a, p->spring_valve_cd_out * a,
                                                      x[PLANT_X_P1], x[PLANT_X_P2], q[2])
                                   : 0.0;
-        m_v = pl->in.vent_valve ? plant_fx_two_way(pl, av * q[3], av, x[PLANT_X_P1], p->ambient_pa, q[2]) : 0.0;
+        m_v = pl->in.vent_valve ? plant_fx_two_way(pl, av, av, x[PLANT_X_P1], p->ambient_pa, q[2]) : 0.0;
     }
     plant_fx_replace_flows(pl, x, dx, fl, fl->compressor, m_s, m_v);
 }

@@ -299,7 +299,8 @@ def run_case(sim, top, seed, case, index, extra, force=(None, None), slot=None):
          "shrink_pct": d["shrink_pct"], "margin_pct": d["margin_pct"], "seconds": time.perf_counter() - t0,
          "lookalikes": d.get("cannot_tell_apart", []),
          "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]],
-         "effects": d.get("effects", []),
+         "effects": d.get("effects", []), "confidence": confidence_level(d),
+         "calibrated": _calibration_names(d.get("calibration")),
          "pairs": [(x["effect"], round(x["shrink_pct"], 1), x["kept"]) for x in d.get("pairs", [])]}
     r["verdict"] = d["effect"]
     r["ranked_combination"] = d.get("ranked_combination") or [x[0] for x in r["ranking"][:2]]
@@ -455,6 +456,20 @@ def print_report(path):
     print("\n".join(reliability(results)))
 
 
+def write_confidence(path, results, on):
+    """Each stated level's right / cases over these results (the second truth family's),
+    for the diagnosis to state with its verdict (confidence.py)."""
+    levels = {}
+    for r in results:
+        if r.get("confidence") is not None:
+            e = levels.setdefault(r["confidence"], {"right": 0, "cases": 0, "on": on})
+            e["cases"] += 1
+            e["right"] += bool(r["right"])
+    with open(path, "w") as fh:
+        json.dump(levels, fh, indent=1, sort_keys=True)
+        fh.write("\n")
+
+
 def reliability(results):
     """For each stated confidence level: right of how many (cases with a level only)."""
     levels = {}
@@ -529,9 +544,18 @@ def main(argv=None):
                          "catalogue), misset (one nominal parameter mis-set, no effect), all")
     ap.add_argument("--forms", help="offform/unknown/misset: comma-separated subset of forms")
     ap.add_argument("--report", metavar="FILE", help="print the family reports of a saved --json again and stop")
+    ap.add_argument("--write-confidence", metavar="FILE",
+                    help="with --report or a family run: write each confidence level's right / cases over the "
+                         "offform and unknown cases (the diagnosis's data/confidence.json)")
     a = ap.parse_args(argv)
     if a.report:
         print_report(a.report)
+        if a.write_confidence:
+            with open(a.report) as fh:
+                saved = json.load(fh)["results"]
+            apart = [r for r in saved if r.get("family") in ("offform", "unknown")]
+            write_confidence(a.write_confidence, apart, f"{len(apart)} offform/unknown cases, leveler "
+                                                       f"{leveler.__version__}")
         return 0
     if a.family != "present":
         return main_families(a)
@@ -553,7 +577,8 @@ def main(argv=None):
             look = f" look-alikes {r['lookalikes']} -> {r['after_experiment']}" if r["lookalikes"] else ""
             second = f" + {r['effects'][1]}" if len(r["effects"]) > 1 else ""
             print(f"{ok} seed {seed} {r['system']:<11} {r['log']:<5} truth {case:<15} named {r['named'] + second:<15}"
-                  f" held-out shrink {r['shrink_pct']:6.1f}%  ({r['seconds']:.0f} s){look}  "
+                  f" held-out shrink {r['shrink_pct']:6.1f}% confidence {r['confidence']} "
+                  f"calibrated {r['calibrated']} ({r['seconds']:.0f} s){look}  "
                   f"top: {r['ranking'][:3]}", flush=True)
         for j in range(a.pairs):
             case = pair_case(seed, j, a.pairs)

@@ -60,7 +60,7 @@ def main(argv=None):
         return 2
 
 
-OUT_FILES = ("diagnosis.json", "report.html", "experiment.csv")   # all leveler-diagnose writes into --out
+OUT_FILES = ("diagnosis.json", "report.html", "experiment.csv", "calibrated.ini")   # all leveler-diagnose writes into --out
 
 
 def prepare_out(out):
@@ -175,6 +175,10 @@ def diagnose_into(a, say, tmp, out):
         result["config_mismatch"] = mismatch
     report.write_json(os.path.join(tmp, OUT_FILES[0]), result)
     report.write_html(os.path.join(tmp, OUT_FILES[1]), result, traces)
+    if (result.get("calibration") or {}).get("ini"):
+        with open(os.path.join(tmp, OUT_FILES[3]), "w") as fh:    # the user's config + what moved
+            fh.write(f"; leveler-diagnose {leveler.__version__}: the calibrated config (diagnosis.json, "
+                     f"calibration)\n" + result["calibration"]["ini"])
     if result.get("experiment"):
         from . import design
         design.write_schedule(os.path.join(tmp, OUT_FILES[2]), result["experiment"])
@@ -182,6 +186,9 @@ def diagnose_into(a, say, tmp, out):
     if result.get("config_mismatch"):
         say("verdict against logs of another config: " + ", ".join(
             f"{m['logged']} (not {m['config']})" for m in result["config_mismatch"]))
+    cal = result.get("calibration") or {}
+    moved = [p for p in cal.get("parameters", []) if p["moved"]]
+    say("calibrated: " + (", ".join(f"{p['name']} {p['change_pct']:+.1f}%" for p in moved) or "no parameter moved"))
     say(f"effect: {' + '.join(result['effects']) or 'none'}; held-out shrink {result['shrink_pct']:.1f}%; "
         f"{result['seconds']:.1f} s; wrote {out}/diagnosis.json and report.html")
     return 0

@@ -91,6 +91,20 @@ def start_shifts(runs):
     return [(h * sh, p * sp) for h in (-1.0, -0.25, 0.25, 1.0) for p in (-1.0, -0.25, 0.25, 1.0)]
 
 
+# An explanation (a calibration, an effect, a pair) must lower the held-out gap by
+# at least this share of the gap the logs' own sensor noise leaves: on a model
+# already at the noise, a percentage of what is left is no evidence.
+NOISE_GAIN = 0.5
+
+
+def noise_gap(runs):
+    """The gap a perfect model would leave on these runs: their sensor noise
+    (design.noise_levels) in the gap's units (gap.SCALES, signals weighed alike)."""
+    noise = noise_levels(runs)
+    terms = [(noise[s] / gap.SCALES[s]) ** 2 for s in gap.SCALES if s in noise]
+    return float(np.sqrt(np.mean(terms))) if terms else 0.0
+
+
 def run_residual(run, trace):
     """Normalised residuals of one run; each run weighs the same whatever its length."""
     if hasattr(run, "residual_vector"):          # a features run (features.py)

@@ -19,6 +19,13 @@ DISPLAY = {"height_m": (1e3, "mm"), "p_spring_pa": (1e-3, "kPa"), "p_pipe_pa": (
            "p_acc_pa": (1e-3, "kPa")}
 
 
+def shrink(before, after):
+    """How far a gap shrinks, in percent of the gap before (0 when there is none)."""
+    if not (before > 0 and np.isfinite(before) and np.isfinite(after)):
+        return 0.0
+    return float(100.0 * (1.0 - after / before))
+
+
 def used_signals(run):
     return [s for s in SCALES if run.measured(s)]
 

@@ -108,8 +108,9 @@ def ranked_second(entries, kept):
             "closes_pct_of_leader_gap": best["closes_pct_of_leader_gap"]}
 
 
-def judge(entries, by_effect, threshold):
-    """Marks each pair kept or not (with the reasons it fails); returns the kept one or None."""
+def judge(entries, by_effect, threshold, max_gap=float("inf")):
+    """Marks each pair kept or not (with the reasons it fails); returns the kept one or None.
+    max_gap: the held-out gap a kept pair must get below (the noise gate, pipeline.py)."""
     for e in entries:
         first, second = e["effects"]
         why = []
@@ -120,6 +121,8 @@ def judge(entries, by_effect, threshold):
             why.append(f"held-out gain {e['gain_pts']:+.1f} points < {MIN_GAIN_PTS:g}")
         if not e["shrink_pct"] >= threshold:
             why.append(f"held-out shrink {e['shrink_pct']:.1f}% < threshold {threshold:.1f}%")
+        if not e["holdout_gap"] <= max_gap:
+            why.append(f"held-out gap {e['holdout_gap']:.3f} not below {max_gap:.3f} (the logs' noise)")
         if not e["delta_bic"] < 0.0:
             why.append(f"information criterion {e['delta_bic']:+.1f} >= 0 (the fit gain does not pay "
                        f"for {second}'s parameters)")

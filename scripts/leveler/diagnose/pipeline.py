@@ -1,8 +1,11 @@
 """The diagnosis, start to end: where the gap lies, which effect, how far it shrinks."""
+import tempfile
 import time
 
 import numpy as np
 
+from . import calibrate
+from . import confidence
 from . import design
 from . import effects as fx
 from . import fit
@@ -115,10 +118,7 @@ def sensitivity_floor(problem, nominal_gap, jitters=JITTERS):
     return best
 
 
-def shrink(before, after):
-    if not (before > 0 and np.isfinite(before) and np.isfinite(after)):
-        return 0.0
-    return float(100.0 * (1.0 - after / before))
+shrink = gap.shrink
 
 
 # Which phase each thesis event figure belongs to (for the `where` table of a features run).
@@ -213,7 +213,7 @@ def _fit_pairs(spec, config, calib, holdout, mode, jobs, fit_opts, plan, ranking
 
 
 def pair_step(spec, config, calib, holdout, mode, jobs, fit_opts, ranking, fits, threshold, nominal_gaps,
-              progress):
+              progress, gate=0.0):
     """Pairs on top of the leader: a screening fit of each to rank the second
     effect, full joint fits of the best to judge (pairs.py). Returns
     (pair entries ranked by evidence, the kept one or None, the ranked second or None)."""
@@ -230,7 +230,7 @@ def pair_step(spec, config, calib, holdout, mode, jobs, fit_opts, ranking, fits,
         entries.update({e["effect"]: e for e in _fit_pairs(spec, config, calib, holdout, mode, jobs, fit_opts,
                                                             full, ranking, nominal_gaps, progress, False)[1]})
     by = {r["effect"]: r for r in ranking}
-    kept = pairs.judge([entries[n] for n in full], by, threshold)
+    kept = pairs.judge([entries[n] for n in full], by, threshold, nominal_gaps[1] - gate)
     out = sorted(entries.values(), key=lambda e: e["evidence"])
     for e in out:
         progress(f"      {e['effect']:<31} {e['shrink_pct']:+.1f}% ({e['gain_pts']:+.1f} points over the leader, "
@@ -239,23 +239,13 @@ def pair_step(spec, config, calib, holdout, mode, jobs, fit_opts, ranking, fits,
     return out, kept, pairs.ranked_second(out, kept)
 
 
-def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jobs=None,
-             progress=print, fit_opts=None, design_pair=None):
-    """Returns (result dict for diagnosis.json, traces for the report)."""
-    t0 = time.perf_counter()
-    candidates = candidates or fx.NAMES
-    cal_problem = fit.Problem(sim, config, calib, mode)
-    hold_problem = fit.Problem(sim, config, holdout, mode, fit.start_shifts(holdout))
-
-    features = _is_features(list(calib) + list(holdout))
-    progress(f"[1/3] where the gap lies: nominal simulation of {len(calib) + len(holdout)} run(s)")
+def _where_step(cal_problem, hold_problem, calib, holdout, features, progress):
+    """[1] where the gap lies, with the user's config as given."""
+    progress(f"[1/4] where the gap lies: nominal simulation of {len(calib) + len(holdout)} run(s)")
     if features:
         where = feature_where(cal_problem, list(calib) + list(holdout))
     else:
         where, _ = where_table(cal_problem, list(calib) + list(holdout))
-    nominal_hold = [hold_problem.best_start(r, None, {})[0] for r in holdout]
-    nominal_cal_gap = cal_problem.gap(None, {})
-    nominal_hold_gap = hold_problem.gap(None, {})
     for w in where["ranked"][:3]:
         if features:
             if w["difference"] is None:
@@ -266,18 +256,91 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
             continue
         progress(f"      #{w['rank']} {w['phase']:<10} {w['signal']:<6} bias {w['bias']:+.2f} {w['unit']}, "
                  f"RMS {w['rms']:.2f} {w['unit']} ({w['share_pct']:.0f}% of the gap)")
+    return where
 
-    progress(f"[2/3] fitting {len(candidates)} candidate effect(s) on {len(calib)} run(s), "
-             f"scoring on {len(holdout)} held-out run(s)")
-    done = [0]
 
-    def on_fit(name, r):
-        done[0] += 1
-        progress(f"      {done[0]}/{len(candidates)} {name:<15} held-out gap {r['holdout_gap']:.3f} "
-                 f"(nominal {nominal_hold_gap:.3f}, {shrink(nominal_hold_gap, r['holdout_gap']):+.1f}%) "
-                 f"in {r['seconds']:.1f} s")
+def _unexplained_step(hold_problem, holdout, ranking, kept, cal_gap, noise, threshold, progress):
+    """confidence.unexplained on the best single or kept pair, with where the calibrated
+    model's held-out residual lies per phase."""
+    lead = dict(ranking[0])
+    if kept and kept["shrink_pct"] > lead["shrink_pct"]:
+        lead = {"effect": kept["effect"], "shrink_pct": kept["shrink_pct"]}
+    cal_nominal = [hold_problem.best_start(r, None, {})[0] for r in holdout]
+    per_phase = before_after(hold_problem, holdout, cal_nominal, cal_nominal)["per_phase"]
+    per_phase = {p: {"before": v["before"]["normalised"]} for p, v in per_phase.items()}
+    finding = confidence.unexplained([lead], cal_gap, noise, per_phase, threshold)
+    if finding:
+        progress(f"      not explained by any candidate: {finding['why']}; the residual lies in "
+                 + ", ".join(f"{w['phase']} ({w['gap']:.2f})" for w in finding["where"]))
+    return finding
 
-    fits = fit.fit_all(spec, config, calib, holdout, mode, candidates, jobs, on_fit, fit_opts)
+
+def _experiment(problem, ranking, pair, progress):
+    """The experiment that best separates two candidates the verdict cannot (design.py)."""
+    by = {r["effect"]: r for r in ranking}
+    a, b = by[pair[0]], by[pair[1]]
+    exp = design.propose(problem, (a["effect"], _params_of(a)), (b["effect"], _params_of(b)))
+    progress(f"      proposed experiment to tell {a['effect']} from {b['effect']}: {exp['ranked'][0]['schedule']}")
+    return exp
+
+
+def _threshold(hold_problem, nominal_hold_gap, features):
+    """(sensitivity floor, the shrink an explanation must reach on the held-out runs)."""
+    if features:
+        floor = sensitivity_floor(hold_problem, nominal_hold_gap)
+        return floor, max(THRESHOLD_PCT, floor)
+    floor = sensitivity_floor(hold_problem, nominal_hold_gap, hold_problem.start_shifts)
+    return floor, max(THRESHOLD_PCT, floor + FLOOR_MARGIN_PTS)
+
+
+def _calibration_step(sim, config, calib, holdout, mode, folder, threshold, progress):
+    """[2] calibrate before blaming: (report or None, the config the effects are fitted on,
+    the runs: those with a config of their own pointed at its calibrated version)."""
+    from .cplant import config_path
+    if not calibrate.supported(sim):
+        progress("[2/4] calibration: not with this simulator; the config as given")
+        return None, config, calib, holdout
+    progress("[2/4] calibrating the config's nominal parameters before blaming an effect")
+    rep = calibrate.calibrate(sim, config_path(config), calib, holdout, mode, folder, threshold, progress)
+    calib, holdout = rep.pop("runs")
+    return rep, rep.pop("config_file"), calib, holdout
+
+
+# Calibration stands against the best effect only when it leaves a held-out gap
+# smaller by this share of the effect's (and by the noise gate); within that share
+# the two explain the held-out runs alike and the verdict says so (confidence.py).
+CALIBRATION_FIRST_PCT = 10.0
+
+
+def _effect_first(calibration, best, gate, progress):
+    """Whether the gap is the leading effect's rather than mis-set nominal values.
+    Both were fitted on the calibration runs, the effect on the config as given,
+    and are judged on held-out runs neither saw. The calibration stands (and an
+    effect must then explain what it leaves) only when it is clearly better: a
+    few nominal values bent far enough mimic many effects. When neither is
+    clearly better, the effect path is taken and the calibration is recorded as
+    its look-alike (`rival`)."""
+    g_cal, g_fx = calibration["holdout_gap"]["after"], best["holdout_gap"]
+    if g_cal <= (1.0 - CALIBRATION_FIRST_PCT / 100.0) * g_fx and g_fx - g_cal >= gate:
+        return False
+    moved = calibration["moved"]
+    if g_fx >= (1.0 - CALIBRATION_FIRST_PCT / 100.0) * g_cal and moved:
+        calibration["rival"] = {"effect": best["effect"], "moved": list(moved), "effect_gap": g_fx,
+                                "calibration_gap": g_cal}
+    calibration.update(kept=False, moved=[], superseded_by=best["effect"],
+                       why=calibration["why"].replace(", kept", "") +
+                       f"; {best['effect']} alone leaves {g_fx:.3f}: calibration is not clearly better, "
+                       f"not kept")
+    for p in calibration["parameters"]:
+        p["moved"] = False
+    calibration["ini"] = None
+    progress(f"      {best['effect']} leaves a held-out gap of {g_fx:.3f}, calibration {g_cal:.3f}: "
+             + ("alike" if calibration.get("rival") else "the effect explains it better")
+             + "; calibration not kept")
+    return True
+
+
+def _rank_fits(candidates, fits, nominal_cal_gap, nominal_hold_gap):
     ranking = []
     for name in candidates:
         r = fits[name]
@@ -294,41 +357,112 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
             "simulations": r["simulations"],
             "seconds": r["seconds"],
         })
-    if not features:
-        signatures(holdout, hold_problem, nominal_hold, ranking)
+    return ranking
+
+
+def _effects_step(spec, config, calib, holdout, mode, candidates, jobs, fit_opts, hold_problem, gaps, progress):
+    """[3] every candidate fitted on the calibration runs (on top of the calibrated
+    config), scored on the held-out runs; ranked by held-out shrink."""
+    nominal_cal_gap, nominal_hold_gap = gaps
+    progress(f"[3/4] fitting {len(candidates)} candidate effect(s) on {len(calib)} run(s), "
+             f"scoring on {len(holdout)} held-out run(s)")
+    done = [0]
+
+    def on_fit(name, r):
+        done[0] += 1
+        progress(f"      {done[0]}/{len(candidates)} {name:<15} held-out gap {r['holdout_gap']:.3f} "
+                 f"(nominal {nominal_hold_gap:.3f}, {shrink(nominal_hold_gap, r['holdout_gap']):+.1f}%) "
+                 f"in {r['seconds']:.1f} s")
+
+    fits = fit.fit_all(spec, config, calib, holdout, mode, candidates, jobs, on_fit, fit_opts)
+    ranking = _rank_fits(candidates, fits, nominal_cal_gap, nominal_hold_gap)
+    if not _is_features(holdout):
+        signatures(holdout, hold_problem, [hold_problem.best_start(r, None, {})[0] for r in holdout], ranking)
     ranking.sort(key=lambda x: -x["shrink_pct"])
     for i, r in enumerate(ranking, 1):
         r["rank"] = i
+    return ranking, fits
+
+
+def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jobs=None,
+             progress=print, fit_opts=None, design_pair=None):
+    """Returns (result dict for diagnosis.json, traces for the report)."""
+    with tempfile.TemporaryDirectory(prefix="leveler-calibration-") as folder:
+        return _diagnose(spec, sim, config, calib, holdout, mode, candidates or fx.NAMES, jobs, progress,
+                         fit_opts, design_pair, folder)
+
+
+def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progress, fit_opts, design_pair, folder):
+    t0 = time.perf_counter()
+    features = _is_features(list(calib) + list(holdout))
+    user_hold = fit.Problem(sim, config, holdout, mode, fit.start_shifts(holdout))
+    where = _where_step(fit.Problem(sim, config, calib, mode), user_hold, calib, holdout, features, progress)
+    user_nominal_hold = [user_hold.best_start(r, None, {})[0] for r in holdout]
+    floor, threshold = _threshold(user_hold, user_hold.gap(None, {}), features)
+    calibration, cal_work, cal_runs, cal_hold = _calibration_step(sim, config, calib, holdout, mode, folder,
+                                                                  threshold, progress)
+    work = config
+    cal_problem = fit.Problem(sim, config, calib, mode)
+    gaps = (cal_problem.gap(None, {}), user_hold.gap(None, {}))
+    hold_problem = user_hold
+    ranking, fits = _effects_step(spec, config, calib, holdout, mode, candidates, jobs, fit_opts, user_hold, gaps,
+                                  progress)
+    gate = 0.0 if features else fit.NOISE_GAIN * fit.noise_gap(holdout)
+    if calibration:     # the candidates on the config as given, beside the calibration's figures
+        calibration["effects_as_given"] = [{k: r[k] for k in ("effect", "holdout_gap", "shrink_pct")}
+                                           for r in ranking]
+    if calibration and calibration["kept"] and not _effect_first(calibration, ranking[0], gate, progress):
+        # the effects must beat what the calibrated model leaves
+        work, calib, holdout = cal_work, cal_runs, cal_hold
+        cal_problem = fit.Problem(sim, work, calib, mode)
+        hold_problem = fit.Problem(sim, work, holdout, mode, fit.start_shifts(holdout))
+        gaps = (cal_problem.gap(None, {}), hold_problem.gap(None, {}))
+        floor, threshold = _threshold(hold_problem, gaps[1], features)
+        progress("      the effects again, on top of the calibrated config")
+        ranking, fits = _effects_step(spec, work, calib, holdout, mode, candidates, jobs, fit_opts, hold_problem,
+                                      gaps, progress)
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
-    threshold = THRESHOLD_PCT
-    if features:
-        floor = sensitivity_floor(hold_problem, nominal_hold_gap)
-        threshold = max(THRESHOLD_PCT, floor)
-    else:
-        floor = sensitivity_floor(hold_problem, nominal_hold_gap, hold_problem.start_shifts)
-        threshold = max(THRESHOLD_PCT, floor + FLOOR_MARGIN_PTS)
     progress(f"      sensitivity floor of the held-out {'figures' if features else 'runs'}: {floor:.1f}% "
              f"(threshold {threshold:.1f}%)")
-    named_single = best["shrink_pct"] >= threshold
+    named_single = best["shrink_pct"] >= threshold and gaps[1] - best["holdout_gap"] >= gate
+    if best["shrink_pct"] >= threshold and not named_single:
+        progress(f"      {best['effect']} lowers the held-out gap by {gaps[1] - best['holdout_gap']:.3f}, less than "
+                 f"half the gap of the logs' own noise ({gate:.3f}): no evidence of an effect")
     pair_list, kept, second = ([], None, None) if features else pair_step(
-        spec, config, calib, holdout, mode, jobs, fit_opts, ranking, fits, threshold,
-        (nominal_cal_gap, nominal_hold_gap), progress)
+        spec, work, calib, holdout, mode, jobs, fit_opts, ranking, fits, threshold, gaps, progress, gate)
     named = named_single or kept is not None
-    winner = best["effect"] if named else "none"
-    effects = kept["effects"] if kept else ([winner] if named else [])
-    look = lookalike_step(cal_problem, ranking, threshold, named_single and not features, progress, design_pair)
+    noise = 0.0 if features else fit.noise_gap(holdout)
+    finding = None if features else _unexplained_step(hold_problem, holdout, ranking, kept, gaps[1], noise,
+                                                      threshold, progress)
+    named = named and finding is None
+    winner = best["effect"] if named else ("not explained" if finding else "none")
+    effects = kept["effects"] if kept and named else ([winner] if named else [])
+    look = lookalike_step(cal_problem, ranking, threshold, named and named_single and not features, progress,
+                          design_pair)
+    sure = confidence.assess(effects, ranking, gaps[1], noise, look["lookalikes"] and look["lookalikes"]["group"],
+                             look["experiment"], finding, (calibration or {}).get("rival"))
+    if not features and effects and len(sure["set"]) >= 2 and not look["experiment"]:
+        look = dict(look, experiment=_experiment(cal_problem, ranking, sure["set"][:2], progress))
+        sure["experiment"] = look["experiment"]["ranked"][0]["schedule"] if look["experiment"] else None
+    progress(f"      confidence: {sure['level']}"
+             + (f" (right {100 * sure['probability']['p']:.0f}% of the time on truths written apart)"
+                if sure["probability"] else "") + f": {sure['why']}"
+             + (f"; {'cannot separate' if effects else 'nearest'}: {', '.join(sure['set'])}"
+                if sure["level"] != "sure" and sure["set"] else ""))
 
-    progress(f"[3/3] before/after on held-out runs ({'winner ' + fx.combine(effects) if named else 'no effect'})")
+    progress(f"[4/4] before/after on held-out runs (the config as given against "
+             f"{'the calibrated config' if calibration and calibration['kept'] else 'the config'}"
+             f"{' + ' + fx.combine(effects) if named else ', no effect'})")
     if named:
         top = kept or best
         aug_hold = [hold_problem.best_start(r, top["effect"], _params_of(top))[0] for r in holdout]
     else:
-        aug_hold = nominal_hold
+        aug_hold = [hold_problem.best_start(r, None, {})[0] for r in holdout]
     if features:
-        ba = feature_before_after(hold_problem, holdout, nominal_hold, aug_hold)
+        ba = feature_before_after(hold_problem, holdout, user_nominal_hold, aug_hold)
     else:
-        ba = before_after(hold_problem, holdout, nominal_hold, aug_hold)
+        ba = before_after(hold_problem, holdout, user_nominal_hold, aug_hold)
     result = {
         "config": config,
         "mode": mode,
@@ -337,6 +471,12 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
         "threshold_pct": threshold,
         "sensitivity_floor_pct": floor,
         "where": where,
+        # the nominal parameters fitted before any effect (calibrate.py); None: not done
+        "calibration": calibration,
+        # how sure, and what no candidate explains (confidence.py)
+        "confidence": sure,
+        "unexplained": finding,
+        "noise_gap": noise,
         "ranking": ranking,
         "effect": winner,
         # the ranked combination: the leader, and a second effect when a pair is kept (pairs.py)
@@ -354,10 +494,13 @@ def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jo
         "experiment": look["experiment"],
         "gap_before": ba["overall"]["before"],
         "gap_after": ba["overall"]["after"],
+        # the config as given -> the calibrated config with the named effect(s)
         "shrink_pct": shrink(ba["overall"]["before"]["normalised"], ba["overall"]["after"]["normalised"]),
+        # the named effect(s) alone, on top of the calibrated config
+        "effect_shrink_pct": (shrink(gaps[1], (kept or best)["holdout_gap"]) if named else 0.0),
         "per_phase": ba["per_phase"],
         "events": ba["events"],
         "seconds": time.perf_counter() - t0,
     }
-    traces = {"holdout": holdout, "nominal": nominal_hold, "augmented": aug_hold}
+    traces = {"holdout": holdout, "nominal": user_nominal_hold, "augmented": aug_hold}
     return result, traces

@@ -174,6 +174,19 @@ def _trace_images(traces, eff):
             for img in (_trace_plot(run, nom, aug, eff), _loop_plot(run, nom, aug, eff))]
 
 
+def _calibration_table(cal):
+    """The calibration stage's parameters (calibrate.py), or None when it did not run."""
+    if not cal:
+        return None
+    return _table(cal["parameters"], [
+        ("parameter", lambda p: p["name"]), ("config", lambda p: p["config"]),
+        ("calibrated", lambda p: p["value"]), ("change %", lambda p: p["change_pct"]),
+        ("95 % interval", lambda p: f"{p['interval'][0]:.4g} .. {p['interval'][1]:.4g}"),
+        ("flags", lambda p: ", ".join(f for f, on in (("moved", p["moved"]), ("not identifiable",
+                                                      not p["identifiable"]), ("at its bound", p["at_bound"])) if on)),
+        ("what it sets", lambda p: p["why"])])
+
+
 def write_html(path, result, traces):
     """report.html from templates/report.html.j2 (Jinja2, autoescaped)."""
     eff = " + ".join(result.get("effects") or []) or result["effect"]
@@ -192,6 +205,7 @@ def write_html(path, result, traces):
             ("signature match", lambda r: r.get("signature_match", float("nan"))),
             ("parameters: value (95 % interval) [range] flags", lambda r: "; ".join(
                 _param_text(k, v) for k, v in r["params"].items()))]),
+        calibration=_calibration_table(result.get("calibration")),
         where=_where_tables(result),
         per_phase=_table([{"p": p, **v} for p, v in result["per_phase"].items()], [
             ("phase", lambda r: r["p"]), ("nominal", lambda r: r["before"]["normalised"]),

@@ -1,0 +1,362 @@
+"""Calibrate before blaming: the nominal parameters of the rig's own config,
+fitted on the calibration runs before any unmodelled effect is tried.
+
+A new rig's first gap is usually a value set wrong in its config, not an
+effect the model lacks: a compressor worn to less displacement, a discharge
+coefficient guessed, a spring volume measured at another height, damping
+taken from a datasheet, the polytropic exponent (the thesis's Appendix A
+studies n = 1.0 / 1.1 / 1.4). The parameters below are the ones a user sets
+by hand and that the logged signals can see: each moves a different part of
+the step test (P1's climb, the fill, the vent, the stiffness, the speeds).
+They are chosen from the physics, each with a physical range; nothing here is
+taken from a test set.
+
+The fit: every parameter in a unit box (log-mapped for scale factors), a weak
+prior toward the config's value (two percent of a unit gap per doubling: far
+below any signal, so only directions the logs cannot see stay put), one
+least-squares fit from the config's values. The runs are simulated through the
+one C loader: a config that `include`s the user's and sets the fitted keys (SI
+keys, as `leveler-sim --dump-config` names them).
+
+Each parameter gets the Jacobian's 95 % interval (uncertainty.py), an
+identifiability flag and `moved`: identifiable, its interval excludes the
+config's value and the change is material. The calibration is kept only when
+it shrinks the held-out gap beyond the threshold an effect must pass; then the
+effects are fitted on top of it, so an effect is named only for what
+calibration cannot explain on the held-out run (pipeline.py).
+"""
+import copy
+import hashlib
+import math
+import os
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from leveler import config as leveler_config
+
+from . import fit
+from .cplant import config_path
+from .gap import shrink as shrink_pct
+from .uncertainty import Z95, autocorrelation_inflation, jacobian, unit_covariance
+
+PRIOR_PER_DOUBLING = 0.02   # prior residual for a factor 2 (or a range's width) away from the config
+MATERIAL_REL = 0.03         # a change below 3 % is not reported as moved
+UNIDENTIFIABLE_LOG = math.log(2.0)   # a 95 % interval wider than a factor 2 either way
+
+
+@dataclass(frozen=True)
+class Nominal:
+    """One config key the calibration may move. rel: (low, high) factors of the
+    config's value (log-mapped); absolute: (low, high) values; cap: a hard upper bound."""
+    name: str
+    section: str
+    key: str
+    why: str
+    rel: tuple = None
+    absolute: tuple = None
+    cap: float = None
+    accumulator: tuple = ()     # only on rigs with one of these accumulator types
+
+    def bounds(self, value):
+        if self.absolute:
+            return self.absolute
+        lo, hi = value * self.rel[0], value * self.rel[1]
+        return lo, min(hi, self.cap) if self.cap else hi
+
+    @property
+    def log(self):
+        return self.absolute is None
+
+
+NOMINALS = (
+    Nominal("compressor_capacity", "compressor", "capacity_m3_per_rad", rel=(0.6, 1.5),
+            why="displacement per radian: wear or another head; sets how fast P1 climbs with the compressor on"),
+    Nominal("spring_valve_cd_in", "spring_valve", "cd_into_spring", rel=(0.5, 1.8), cap=1.0,
+            why="discharge coefficient pipe -> spring: how fast the spring fills through the valve"),
+    Nominal("spring_valve_cd_out", "spring_valve", "cd_out_of_spring", rel=(0.5, 1.8), cap=1.0,
+            why="discharge coefficient spring -> pipe: how fast the spring empties toward the vent"),
+    Nominal("vent_valve_cd", "vent_valve", "cd", rel=(0.5, 1.8), cap=1.0,
+            why="discharge coefficient of the vent: how fast the pipe discharges to ambient"),
+    Nominal("spring_volume", "spring", "volume_m3", rel=(0.8, 1.25),
+            why="the spring's volume at the initial height: its stiffness, P2 against height"),
+    Nominal("pipe_volume", "pipe", "volume_m3", rel=(0.5, 2.0),
+            why="the pipe's volume: how P1 moves for a given flow"),
+    Nominal("damping_up", "platform", "damping_up_n_s_per_m", rel=(0.4, 2.5),
+            why="platform damping rising: the climb's speed for a given excess pressure"),
+    Nominal("damping_down", "platform", "damping_down_n_s_per_m", rel=(0.4, 2.5),
+            why="platform damping sinking: the drop's speed"),
+    Nominal("polytropic_exponent", "ambient", "polytropic_exponent", absolute=(1.0, 1.4),
+            why="the gas's exponent (Appendix A: 1.0 isothermal .. 1.4 adiabatic): stiffness in fast motion"),
+    Nominal("accumulator_cd", "accumulator", "cd", rel=(0.5, 1.8), cap=1.0, accumulator=("tube", "diaphragm"),
+            why="discharge coefficient of the accumulator valve: how fast the accumulator's burst arrives"),
+    Nominal("accumulator_volume", "accumulator", "volume_m3", rel=(0.7, 1.4), accumulator=("tube",),
+            why="the accumulator's gas volume: how much air one burst holds"),
+    Nominal("accumulator_charge", "accumulator", "charge_pa", rel=(0.85, 1.15), accumulator=("tube",),
+            why="the accumulator's charge pressure: the burst's pressure"),
+)
+
+
+def applicable(resolved):
+    """The Nominal entries that exist on this rig (accumulator keys only with one)."""
+    acc = resolved.get("accumulator", {}).get("type", "none")
+    return [n for n in NOMINALS if not n.accumulator or acc in n.accumulator]
+
+
+class Space:
+    """The calibration's unit box over a rig's applicable parameters."""
+
+    def __init__(self, config_file, resolved):
+        self.config_file = config_file
+        self.name = resolved["config"]["name"]
+        self.params = applicable(resolved)
+        self.base = np.array([resolved[n.section][n.key] for n in self.params], dtype=float)
+        self.lo = np.array([n.bounds(v)[0] for n, v in zip(self.params, self.base)])
+        self.hi = np.array([n.bounds(v)[1] for n, v in zip(self.params, self.base)])
+        self.is_log = np.array([n.log for n in self.params])
+        self.u0 = self.to_unit(self.base)
+
+    def _t(self, v):
+        v = np.asarray(v, dtype=float)
+        return np.where(self.is_log, np.log(np.maximum(v, 1e-300)), v)
+
+    def to_unit(self, values):
+        lo, hi = self._t(self.lo), self._t(self.hi)
+        return np.clip((self._t(values) - lo) / (hi - lo), 0.0, 1.0)
+
+    def values(self, u):
+        lo, hi = self._t(self.lo), self._t(self.hi)
+        x = lo + np.clip(u, 0.0, 1.0) * (hi - lo)
+        return np.where(self.is_log, np.exp(x), x)
+
+    def prior(self, u):
+        """Weak pull toward the config: PRIOR_PER_DOUBLING per factor 2 (per range for absolute keys)."""
+        width = self._t(self.hi) - self._t(self.lo)
+        per = np.where(self.is_log, math.log(2.0) / width, 1.0)
+        return PRIOR_PER_DOUBLING * (np.asarray(u) - self.u0) / per
+
+
+def ini_text(config_file, name, params, values, notes=None):
+    """A config that includes the user's and sets the calibrated keys (SI)."""
+    lines = [f"[config]\ninclude = {os.path.abspath(config_file)}\nname = {name}\n"]
+    by_section = {}
+    for i, (n, v) in enumerate(zip(params, values)):
+        note = f"  ; {notes[i]}" if notes and notes[i] else ""
+        by_section.setdefault(n.section, []).append(f"{n.key} = {float(v)!r}{note}")
+    for sec, keys in by_section.items():
+        lines.append(f"\n[{sec}]\n" + "\n".join(keys) + "\n")
+    return "".join(lines)
+
+
+class Calibrated:
+    """Residuals of the runs under a parameter vector: the C loader reads a
+    written config (one file per vector, kept for the caches keyed by path)."""
+
+    def __init__(self, sim, space, runs, mode, folder, start_shifts=None):
+        self.sim, self.space, self.runs, self.mode, self.folder = sim, space, runs, mode, folder
+        self.start_shifts = start_shifts
+        self.own = {}        # config name -> Space of runs with their own config
+        self.nsim = 0
+
+    def config(self, u, space=None):
+        """The config file of the parameters at u: the space's own values, or for
+        another config of the same rig (space: a run's own, published figures) the
+        same factors (the same values for absolute keys) applied to its values."""
+        values = self.space.values(u)
+        if space is not None:
+            values = np.where(space.is_log, space.base * values / self.space.base, values)
+        sp = space or self.space
+        text = ini_text(sp.config_file, sp.name, sp.params, values)
+        path = os.path.join(self.folder, "cal-" + hashlib.sha1(text.encode()).hexdigest()[:16] + ".ini")
+        if not os.path.exists(path):
+            with open(path + ".tmp", "w") as fh:
+                fh.write(text)
+            os.replace(path + ".tmp", path)
+        return path
+
+    def runs_at(self, u):
+        """The runs, those with a config of their own (published figures) pointed at its
+        calibrated version."""
+        out = []
+        for r in self.runs:
+            own = getattr(r, "config_override", None)
+            if own:
+                if own not in self.own:
+                    path = config_path(own)
+                    self.own[own] = Space(path, leveler_config.resolved(path))
+                r = copy.copy(r)
+                r.config_override = self.config(u, self.own[own])
+            out.append(r)
+        return out
+
+    def problem(self, u):
+        return fit.Problem(self.sim, self.config(u), self.runs_at(u), self.mode, self.start_shifts)
+
+    def data_residual(self, u):
+        p = self.problem(u)
+        r = p.residual_vector(None, {})
+        self.nsim += p.nsim
+        return r
+
+    def residual(self, u):
+        return np.concatenate([self.data_residual(u), self.space.prior(u)])
+
+    def gap(self, u):
+        p = self.problem(u)
+        g = p.gap(None, {})
+        self.nsim += p.nsim
+        return g
+
+
+MAX_MOVED = 4          # a config is mis-set in a few values, not in all of them
+
+
+def fit_subset(cal, u, idx, max_nfev):
+    """Least squares over the parameters idx (the others held at u). Returns the unit point."""
+    idx = list(idx)
+
+    def fun(x):
+        v = np.array(u, dtype=float)
+        v[idx] = x
+        return cal.residual(v)
+    res = least_squares(fun, np.asarray(u, dtype=float)[idx], bounds=(np.zeros(len(idx)), np.ones(len(idx))),
+                        diff_step=0.01, x_scale=np.full(len(idx), 0.2), max_nfev=max_nfev, method="trf")
+    out = np.array(u, dtype=float)
+    out[idx] = res.x
+    return out
+
+
+MIN_SS_GAIN = 0.05     # and lower the calibration residual's sum of squares by 5 %
+
+
+def worth_adding(r_old, ss_new):
+    """The Bayesian information criterion with the residuals' effective sample
+    count (autocorrelation, uncertainty.py): one more parameter must pay for
+    itself, and make a difference worth reporting (MIN_SS_GAIN)."""
+    ss_old = float(np.sum(r_old ** 2))
+    if ss_new <= 0.0 or ss_old <= 0.0:
+        return ss_new < ss_old
+    if ss_new > (1.0 - MIN_SS_GAIN) * ss_old:
+        return False
+    n_eff = max(len(r_old) / autocorrelation_inflation(r_old), 2.0)
+    return n_eff * math.log(ss_new / ss_old) + math.log(n_eff) < 0.0
+
+
+def fit_calibration(cal, max_nfev=12, progress=None):
+    """Forward selection: each round fits every parameter not yet chosen alone
+    (the chosen ones held), adds the one that lowers the calibration residual most
+    if it pays for itself (worth_adding), then refits the chosen set jointly.
+    One parameter at a time finds the value that is wrong; a joint fit of all
+    of them from the config trades small compensating errors among the rest.
+    Returns (unit point, chosen indices)."""
+    u = np.array(cal.space.u0, dtype=float)
+    chosen = []
+    r = cal.data_residual(u)
+    while len(chosen) < min(MAX_MOVED, len(u)):
+        trials = [(j, fit_subset(cal, u, [j], max_nfev)) for j in range(len(u)) if j not in chosen]
+        scored = [(float(np.sum(cal.data_residual(v) ** 2)), j, v) for j, v in trials]
+        ss, j, v = min(scored, key=lambda x: x[0])
+        if not worth_adding(r, ss):
+            break
+        chosen.append(j)
+        u = fit_subset(cal, v, chosen, 2 * max_nfev) if len(chosen) > 1 else v
+        r = cal.data_residual(u)
+        if progress:
+            progress(f"      + {cal.space.params[j].name:<22} calibration gap {fit.cost_to_gap(r, len(cal.runs)):.3f}")
+    return u, chosen
+
+
+def _sd(cal, u, chosen):
+    """Unit-box standard deviations of the chosen parameters (the Jacobian's, over
+    the chosen set); inf for the others (the logs were not asked for them)."""
+    sd = np.full(len(u), np.inf)
+    if not chosen:
+        return sd
+
+    def fun(x):
+        v = np.array(u, dtype=float)
+        v[chosen] = x
+        return cal.data_residual(v)
+    r, J = jacobian(fun, np.asarray(u, dtype=float)[chosen], step=0.01)
+    cov, blind = unit_covariance(r, J)
+    for k, j in enumerate(chosen):
+        sd[j] = float(np.sqrt(max(cov[k, k], 0.0))) if not blind[k] else np.inf
+    return sd
+
+
+def parameter_table(cal, u, chosen, accepted):
+    """Per parameter: config value, calibrated value, change, 95 % interval, flags."""
+    sds = _sd(cal, u, chosen)
+    sp = cal.space
+    vals = sp.values(u)
+    out = []
+    for j, n in enumerate(sp.params):
+        sd = float(sds[j])
+        lo_u, hi_u = np.array(u, dtype=float), np.array(u, dtype=float)
+        lo_u[j] = max(0.0, u[j] - Z95 * sd) if np.isfinite(sd) else 0.0
+        hi_u[j] = min(1.0, u[j] + Z95 * sd) if np.isfinite(sd) else 1.0
+        lo, hi = float(sp.values(lo_u)[j]), float(sp.values(hi_u)[j])
+        base, v = float(sp.base[j]), float(vals[j])
+        ident = bool(j not in chosen or np.isfinite(sd) and (math.log(max(hi, 1e-300) / max(lo, 1e-300)) < 2 * UNIDENTIFIABLE_LOG
+                                          if n.log else hi - lo < 0.5 * (sp.hi[j] - sp.lo[j])))
+        change = v / base - 1.0 if base != 0 else 0.0
+        moved = bool(accepted and j in chosen and ident and not (lo <= base <= hi) and abs(change) >= MATERIAL_REL)
+        out.append({"name": n.name, "section": n.section, "key": n.key, "config": base, "value": v,
+                    "change_pct": 100.0 * change, "interval": [lo, hi], "range": [float(sp.lo[j]), float(sp.hi[j])],
+                    "identifiable": ident, "at_bound": bool(u[j] <= 1e-3 or u[j] >= 1 - 1e-3),
+                    "chosen": j in chosen, "moved": moved, "why": n.why})
+    return out
+
+
+def supported(sim):
+    """The C plant (a stand-in simulator has no config files)."""
+    return hasattr(sim, "check_config")
+
+
+def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progress=print, max_nfev=12):
+    """The calibration stage. Returns its report (diagnosis.json's `calibration`)
+    with `config_file`: the calibrated config when kept, else the user's."""
+    t0 = time.perf_counter()
+    space = Space(config_file, leveler_config.resolved(config_file))
+    cal = Calibrated(sim, space, calib, mode, folder)
+    hold = Calibrated(sim, space, holdout, mode, folder, fit.start_shifts(holdout))
+    progress(f"      fitting {len(space.params)} nominal parameters of {space.name} on {len(calib)} run(s)")
+    u, chosen = fit_calibration(cal, max_nfev, progress)
+    before_cal, after_cal = cal.gap(space.u0), cal.gap(u)
+    before, after = hold.gap(space.u0), hold.gap(u)
+    shrink = shrink_pct(before, after)
+    gate = fit.NOISE_GAIN * fit.noise_gap(holdout)
+    accepted = shrink >= threshold and before - after >= gate
+    table = parameter_table(cal, u, chosen, accepted)
+    moved = [p for p in table if p["moved"]]
+    notes = [("not fitted: the config's value" if not p["chosen"] else
+              ("moved" if p["moved"] else "fitted, not moved") + f": config {p['config']:.6g}, {p['change_pct']:+.1f}%, "
+              f"95 % interval {p['interval'][0]:.6g}..{p['interval'][1]:.6g}"
+              + ("" if p["identifiable"] else ", not identifiable from these logs")) for p in table]
+    report = {
+        "kept": bool(accepted),
+        "why": (f"held-out gap {before:.3f} -> {after:.3f} ({shrink:+.1f}%), "
+                + ("kept" if accepted else f"below the {threshold:.1f}% (and {gate:.3f} of gap) an explanation must "
+                                     f"reach: not kept")),
+        "parameters": table,
+        "moved": [p["name"] for p in moved],
+        "calibration_gap": {"before": before_cal, "after": after_cal},
+        "holdout_gap": {"before": before, "after": after},
+        "shrink_pct": shrink,
+        "simulations": cal.nsim + hold.nsim,
+        "seconds": time.perf_counter() - t0,
+        # every fitted value (the model the effects were fitted on), each with where it came from
+        "ini": ini_text(config_file, space.name, space.params, [p["value"] for p in table], notes)
+        if accepted else None,
+    }
+    report["config_file"] = cal.config(u) if accepted else config_file
+    report["runs"] = (cal.runs_at(u), hold.runs_at(u)) if accepted else (list(calib), list(holdout))
+    for p in table:
+        if p["chosen"]:
+            mark = "moved" if p["moved"] else ("not identifiable" if not p["identifiable"] else "not moved")
+            progress(f"      {p['name']:<22} {p['config']:.4g} -> {p['value']:.4g} ({p['change_pct']:+.1f}%, "
+                     f"95% {p['interval'][0]:.4g}..{p['interval'][1]:.4g}) {mark}")
+    progress(f"      calibration: {report['why']}; {report['simulations']} simulations in {report['seconds']:.1f} s")
+    return report

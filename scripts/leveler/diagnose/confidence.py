@@ -1,0 +1,104 @@
+"""How sure the verdict is, said in a way that is true, and what no candidate explains.
+
+A level, from what the logs show about the verdict (not from the verdict's
+name): the named effect's margin over the next candidate, whether a look-alike
+was found, how much of the calibrated model's gap it closes, and how close the
+result is to the logs' own noise. Each level carries the probability of being
+right measured for it on the blind test's second truth family (forms written
+apart from the candidates, host_sim/blindtest/truth2.json; data/confidence.json,
+docs/diagnosis.md): "sure" is said only where that was right at least 19 times
+in 20. Below "sure", the set the logs cannot separate, why, and the experiment
+(experiment.csv) that would.
+
+"Not explained by any candidate": the calibrated model leaves a gap well above
+the noise, and the best candidate closes less than half of it. The verdict then
+names no effect (the nearest look-alike is kept as `nearest`), with where the
+residual lies.
+"""
+import json
+import os
+
+LEVELS_FILE = os.path.join(os.path.dirname(__file__), "data", "confidence.json")
+
+SURE_MARGIN_PTS = 25.0      # the named effect beats the next candidate by this many held-out points
+LIKELY_MARGIN_PTS = 10.0
+SURE_EFFECT_SHRINK = 60.0   # and closes this much of what the calibrated model leaves
+EXPLAINS_PCT = 50.0         # a candidate closing less than half of a gap above noise does not explain it
+UNEXPLAINED_NOISE = 3.0     # "above noise": a held-out gap this many times the logs' noise gap
+NONE_QUIET = 2.0            # a `none` is sure when what is left is within this many noise gaps
+
+
+def _measured():
+    """Per level, right / cases on the second truth family (written by the blind test's --report)."""
+    try:
+        with open(LEVELS_FILE) as fh:
+            return json.load(fh)
+    except (OSError, ValueError):
+        return {}
+
+
+def _probability(level):
+    m = _measured().get(level)
+    if not m or not m.get("cases"):
+        return None
+    return {"p": m["right"] / m["cases"], "right": m["right"], "cases": m["cases"], "measured_on": m.get("on", "")}
+
+
+def unexplained(ranking, cal_gap, noise, per_phase, threshold):
+    """The 'not explained by any candidate' finding, or None. ranking: held-out
+    shrink of each candidate over the calibrated model (cal_gap)."""
+    best = ranking[0]
+    if not (noise > 0 and cal_gap > UNEXPLAINED_NOISE * noise and best["shrink_pct"] < EXPLAINS_PCT):
+        return None
+    where = sorted(per_phase.items(), key=lambda kv: -kv[1]["before"])[:3]
+    return {"gap": cal_gap, "noise_gap": noise, "times_noise": cal_gap / noise,
+            "nearest": best["effect"], "nearest_shrink_pct": best["shrink_pct"],
+            "where": [{"phase": p, "gap": v["before"]} for p, v in where],
+            "why": (f"the calibrated model leaves a held-out gap {cal_gap / noise:.1f} times the logs' noise; "
+                    f"the nearest candidate, {best['effect']}, closes {best['shrink_pct']:.0f}% of it "
+                    f"(less than {EXPLAINS_PCT:.0f}%)" + ("" if best["shrink_pct"] >= threshold else
+                                                          ", below the threshold"))}
+
+
+def _contenders(ranking, lead_pct, pts):
+    return [r["effect"] for r in ranking if r["shrink_pct"] >= lead_pct - pts]
+
+
+def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained_finding, rival=None):
+    """{level, probability, set, why, experiment}. effects: the named effect(s)
+    ([] for none); ranking: candidates by held-out shrink over the calibrated model;
+    rival: mis-set nominal values that explain the held-out runs as well as the
+    named effect (pipeline._effect_first)."""
+    best = ranking[0]
+    runner = ranking[1] if len(ranking) > 1 else None
+    margin = best["shrink_pct"] - runner["shrink_pct"] if runner else 100.0
+    left = cal_gap * (1.0 - best["shrink_pct"] / 100.0)
+    exp = (experiment or {}).get("ranked", [{}])[0].get("schedule") if experiment else None
+    if unexplained_finding:
+        level, cset, why = "unsure", [], unexplained_finding["why"]
+    elif not effects:
+        quiet = noise > 0 and cal_gap <= NONE_QUIET * noise
+        level = "sure" if quiet else "likely"
+        cset = [] if quiet else _contenders(ranking, best["shrink_pct"], LIKELY_MARGIN_PTS)[:3]
+        why = ("the calibrated model is within the logs' noise: nothing is left to explain" if quiet else
+               f"no candidate reaches the threshold; the gap left is {cal_gap / noise:.1f} times the noise"
+               if noise > 0 else "no candidate reaches the threshold")
+    elif lookalikes:
+        level, cset = "unsure", list(lookalikes)
+        why = "these candidates explain the logs equally well (each refitted on the other's runs)"
+    elif rival and effects:
+        level, cset = "unsure", list(effects) + ["calibration: " + ", ".join(rival["moved"])]
+        why = (f"mis-set {', '.join(rival['moved'])} explain the held-out runs about as well "
+               f"(held-out gap {rival['calibration_gap']:.3f} against {rival['effect_gap']:.3f})")
+    elif (margin >= SURE_MARGIN_PTS and best["shrink_pct"] >= SURE_EFFECT_SHRINK
+          and (noise <= 0 or left <= UNEXPLAINED_NOISE * noise)):
+        level, cset = "sure", list(effects)
+        why = (f"{best['effect']} closes {best['shrink_pct']:.0f}% of the calibrated model's held-out gap, "
+               f"{margin:.0f} points ahead of {runner['effect'] if runner else 'nothing'}")
+    else:
+        level = "likely" if margin >= LIKELY_MARGIN_PTS else "unsure"
+        cset = _contenders(ranking, best["shrink_pct"], SURE_MARGIN_PTS)[:3]
+        why = (f"{best['effect']} leads {runner['effect'] if runner else ''} by {margin:.0f} held-out points"
+               f"{'' if best['shrink_pct'] >= SURE_EFFECT_SHRINK else ' and closes ' + format(best['shrink_pct'], '.0f') + '% of the gap'}")
+    return {"level": level, "probability": _probability(level), "set": cset, "why": why,
+            "experiment": exp if level != "sure" else None}

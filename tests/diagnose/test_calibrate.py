@@ -1,0 +1,88 @@
+"""Calibrate before blaming (calibrate.py): on logs of a rig whose config differs from
+the given one in one nominal value (made by the C plant closed loop with the firmware,
+through the C loader's include, as the blind test's mis-set rigs are), the calibration
+moves that value back to within a few percent of the rig's, leaves a held-out gap as
+small as the rig's own config leaves (the independent expectation: the true model),
+and on logs of the given config itself moves nothing."""
+import os
+
+import numpy as np
+import pytest
+
+from leveler import config as leveler_config
+from leveler.diagnose import blindtest as bt
+from leveler.diagnose import calibrate, fit, runs
+from leveler.diagnose import cplant as cp
+
+
+def _logs(sim, folder, rig, seed=4):
+    """The blind test's three schedules on `rig` (100 Hz logs); (calibration runs, held-out)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for name, steps, end in bt.schedules(rng, "900lb"):
+        path = os.path.join(folder, f"{name}.csv")
+        bt.write_truth_log(sim, path, rig, "900lb", steps, end, "none", [], "100Hz", rng)
+        out.append(runs.load_run(path))
+    return out[:2], out[2:]
+
+
+def _misset(folder, change):
+    spec = next(s for s in bt.family_specs("misset") if s["form"] == change)
+    return bt.rig_config(folder, "900lb", 4, spec), spec
+
+
+@pytest.mark.parametrize("change,want", [("capacity-15%", "compressor_capacity"),
+                                         ("vent_cd-25%", "vent_valve_cd")])
+def test_calibration_finds_the_misset_value(cplant, tmp_path, change, want):
+    try:
+        rig, spec = _misset(str(tmp_path), change)
+        truth = leveler_config.resolved(rig)
+    except leveler_config.ConfigError as e:
+        pytest.skip(f"leveler-sim not available: {e}")
+    calib, hold = _logs(cplant, str(tmp_path), rig)
+    config = cp.config_path("thesis-900lb")
+    rep = calibrate.calibrate(cplant, config, calib, hold, "auto", str(tmp_path), 15.0, progress=lambda m: None)
+    assert rep["kept"]
+    assert want in rep["moved"]
+    p = next(x for x in rep["parameters"] if x["name"] == want)
+    sec, key = spec["keys"][0]
+    assert p["value"] == pytest.approx(truth[sec][key], rel=0.03)
+    # as good on the held-out run as the rig's own config (the true model)
+    true_gap = fit.Problem(cplant, rig, hold, "auto", fit.start_shifts(hold)).gap(None, {})
+    assert rep["holdout_gap"]["after"] <= 1.25 * true_gap
+    assert rep["holdout_gap"]["before"] >= 3.0 * true_gap
+    # the calibrated config is a config the C loader reads, holding the fitted value
+    path = os.path.join(str(tmp_path), "calibrated.ini")
+    with open(path, "w") as fh:
+        fh.write(rep["ini"])
+    assert leveler_config.resolved(path)[sec][key] == pytest.approx(p["value"], rel=1e-12)
+
+
+def test_calibration_moves_nothing_on_the_configs_own_logs(cplant, tmp_path):
+    try:
+        rig = bt.rig_config(str(tmp_path), "900lb", 4)
+        leveler_config.resolved(rig)
+    except leveler_config.ConfigError as e:
+        pytest.skip(f"leveler-sim not available: {e}")
+    calib, hold = _logs(cplant, str(tmp_path), rig)
+    rep = calibrate.calibrate(cplant, cp.config_path("thesis-900lb"), calib, hold, "auto", str(tmp_path), 15.0,
+                              progress=lambda m: None)
+    assert rep["moved"] == []
+    assert not rep["kept"]
+
+
+def test_the_parameters_come_from_the_physics_not_a_test_set():
+    names = {n.name for n in calibrate.NOMINALS}
+    # every one is a config key the C loader knows, with a range around the config's value
+    try:
+        doc = leveler_config.resolved(cp.config_path("thesis-900lb-diaphragm"))
+    except leveler_config.ConfigError as e:
+        pytest.skip(f"leveler-sim not available: {e}")
+    for n in calibrate.applicable(doc):
+        v = doc[n.section][n.key]
+        lo, hi = n.bounds(v)
+        assert lo < v < hi and (not n.cap or hi <= n.cap), n.name
+    assert "accumulator_cd" in {n.name for n in calibrate.applicable(doc)}
+    assert "accumulator_cd" not in {n.name for n in calibrate.applicable(
+        leveler_config.resolved(cp.config_path("thesis-900lb")))}
+    assert len(names) == len(calibrate.NOMINALS)
