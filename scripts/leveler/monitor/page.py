@@ -9,7 +9,7 @@ Shown units: heights in mm, pressures in kPa absolute (the map's um and Pa).
 import html
 
 from bokeh.layouts import column, row
-from bokeh.models import ColumnDataSource, DataTable, Div, TableColumn
+from bokeh.models import ColumnDataSource, Div
 from bokeh.plotting import figure
 
 from . import controls
@@ -68,19 +68,19 @@ def trend_figures(src):
         act.step("t", col, source=src, mode="after", legend_label=label, color=["#e7298a", "#66a61e", "#e6ab02",
                                                                                 "#a6761d"][i])
     for fig in (height, press, act):
-        fig.legend.location = "top_left"
         fig.legend.click_policy = "hide"
+        fig.add_layout(fig.legend[0], "right")
     act.yaxis.visible = False
     return [height, press, act]
 
 
 def hysteresis_figure(trail, up, down):
-    fig = figure(height=360, width=460, title="P2 against height, learnt hysteresis lines (thesis fig. 20)",
+    fig = figure(height=360, width=460, title="P2 against height (thesis fig. 20)",
                  x_axis_label="height (mm)", y_axis_label="P2 (kPa abs)")
     fig.scatter("h", "p2", source=trail, size=3, alpha=0.5, legend_label="P2 (recent)")
     fig.line("x", "y", source=up, color="firebrick", line_width=2, legend_label="UPlimit (learnt)")
     fig.line("x", "y", source=down, color="navy", line_width=2, legend_label="DPlimit (learnt)")
-    fig.legend.location = "top_right"
+    fig.add_layout(fig.legend[0], "below")
     return fig
 
 
@@ -98,25 +98,20 @@ class Page:
         self.down = ColumnDataSource({"x": [], "y": []}, name="down_line")
         self.now = Div(text="waiting for the first reading", name="now", css_classes=["lm-now"])
         self.status = Div(text="", name="status", css_classes=["lm-status"], width=460)
-        self.settings = ColumnDataSource({"name": [], "value": [], "unit": [], "description": []}, name="settings")
+        self.settings = Div(text="", name="settings", css_classes=["lm-settings"], sizing_mode="stretch_width")
         self.controls = controls.Controls(regmap, link, poller) if link is not None else None
         doc.title = "leveler-monitor"
         doc.add_root(self.layout())
         doc.add_periodic_callback(self.update, max(50, int(1000 / rate_hz)))
 
     def layout(self):
-        table = DataTable(source=self.settings, name="settings_table", height=360, sizing_mode="stretch_width",
-                          columns=[TableColumn(field="name", title="setting", width=200),
-                                   TableColumn(field="value", title="value", width=110),
-                                   TableColumn(field="unit", title="unit", width=70),
-                                   TableColumn(field="description", title="description", width=600)])
         head = Div(text="<h2>leveler-monitor</h2>", sizing_mode="stretch_width")
         side = [self.status]
         if self.controls is not None:
             side.append(self.controls.layout())
         left = column([self.now] + trend_figures(self.trend), sizing_mode="stretch_width")
         right = column([hysteresis_figure(self.trail, self.up, self.down)] + side)
-        return column(head, row(left, right, sizing_mode="stretch_width"), Div(text="<h3>settings</h3>"), table,
+        return column(head, row(left, right, sizing_mode="stretch_width"), Div(text="<h3>settings</h3>"), self.settings,
                       sizing_mode="stretch_width")
 
     def update(self):
@@ -142,11 +137,7 @@ class Page:
         self.last_settings = settings
         lines = hysteresis_lines(self.regmap, v)
         self.up.data, self.down.data = lines["up"], lines["down"]
-        regs = self.regmap.table("holding")
-        self.settings.data = {"name": [r["name"] for r in regs],
-                              "value": [value_text(self.regmap, r["name"], v[r["name"]]) for r in regs],
-                              "unit": [r["unit"] for r in regs],
-                              "description": [r["description"] for r in regs]}
+        self.settings.text = settings_html(self.regmap, v)
         if self.controls is not None:
             self.controls.settings_changed(v)
 
@@ -155,6 +146,15 @@ def value_text(regmap, name, value):
     if "enum" in regmap[name]:
         return f"{regmap.enum_name(name, value)} ({value})"
     return str(value)
+
+
+def settings_html(regmap, v):
+    """The settings (holding registers) as a table: name, value, unit, description."""
+    cells = "".join(f"<tr><td>{r['name']}</td><td class='lm-set-{r['name']}'><b>{html.escape(value_text(regmap, r['name'], v[r['name']]))}"
+                    f"</b></td><td>{html.escape(r['unit'])}</td><td>{html.escape(r['description'])}</td></tr>"
+                    for r in regmap.table("holding"))
+    return ("<table style='border-collapse:collapse' cellpadding='2'><tr><th align='left'>setting</th>"
+            f"<th align='left'>value</th><th align='left'>unit</th><th align='left'>description</th></tr>{cells}</table>")
 
 
 def status_html(regmap, v, link_error):
@@ -167,6 +167,8 @@ def status_html(regmap, v, link_error):
             ("active faults", ", ".join(regmap.bit_names("last_fault_code", v["active_fault_bits"])) or "none"),
             ("latched faults", ", ".join(regmap.bit_names("last_fault_code", v["latched_fault_bits"])) or "none"),
             ("last fault", name("last_fault_code", v["last_fault_code"])),
+            ("UPlimit at target", f"{v['alg3_up_pa'] / 1000:.1f} kPa" if v["alg3_up_pa"] else "not learnt"),
+            ("DPlimit at target", f"{v['alg3_down_pa'] / 1000:.1f} kPa" if v["alg3_down_pa"] else "not learnt"),
             ("sensor fault bits", f"{v['sensor_fault_bits']:04b} (bit n: channel n)"),
             ("last refused write", name("last_refusal_reason", v["last_refusal_reason"])),
             ("flags", ", ".join(flags) or "none"),
@@ -174,6 +176,6 @@ def status_html(regmap, v, link_error):
                                        if r["name"].startswith("fault_count_"))),
             ("uptime", f"{v['uptime_ms'] / 1000:.1f} s"), ("firmware", str(v["firmware_version"])),
             ("link", link_error or "ok")]
-    cells = "".join(f"<tr><td>{html.escape(k)}</td><td class='lm-{k.replace(' ', '-')}'><b>{html.escape(str(x))}</b>"
+    cells = "".join(f"<tr><td>{html.escape(k)}</td><td class='lm-st-{k.replace(' ', '-')}'><b>{html.escape(str(x))}</b>"
                     f"</td></tr>" for k, x in rows)
     return f"<table>{cells}</table>"

@@ -1,0 +1,177 @@
+"""Issue 22: leveler-monitor's page in a real headless browser (Chromium over
+the DevTools protocol) against a real rig: leveler-plant-server (the thesis
+900 lb plant, load step at 5 s) + leveler-rig, the monitor on the rig's Modbus
+TCP port.
+
+Read-only: the page loads, its trends move (the displayed time and height
+change as the plant runs, the trend's points grow) and it offers no writes.
+With --allow-writes: band, mode and a commissioning setting written through
+the page's own controls arrive in the firmware (read back over Modbus with
+pymodbus, an independent peer); a band the firmware refuses shows the
+firmware's reason on the page and changes nothing. A screenshot of the page
+is kept (LEVELER_MONITOR_ARTEFACTS, printed).
+"""
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "tests" / "rig" / "py"))
+sys.path.insert(0, str(Path(__file__).parent))
+import cdp  # noqa: E402
+import rigproc  # noqa: E402
+
+REGS = {r["name"]: r for r in json.loads((ROOT / "firmware/regmap/registers.json").read_text())["registers"]}
+MONITOR = ROOT / "scripts" / "leveler-monitor"
+ARTEFACTS = Path(os.environ.get("LEVELER_MONITOR_ARTEFACTS", "."))
+NOW_JS = "textDeep('lm-now') || ''"
+
+
+def holding(client, name):
+    """A holding register read over Modbus with pymodbus, decoded here from registers.json (hi word first)."""
+    r = REGS[name]
+    words = 2 if r["type"] in ("int32", "uint32") else 1
+    rr = client.read_holding_registers(r["address"], count=words)
+    assert not rr.isError(), rr
+    v = rr.registers[0] if words == 1 else rigproc.u32(rr.registers)
+    return v - (1 << 32) if r["type"] == "int32" and v >= 1 << 31 else v
+
+
+class Monitor:
+    def __init__(self, tmp, rig_port, *extra):
+        port_file = tmp / "http.port"
+        port_file.unlink(missing_ok=True)
+        self.out_path = tmp / "monitor.out"
+        self.out = open(self.out_path, "a")
+        self.proc = subprocess.Popen([str(MONITOR), "--host", "127.0.0.1", "--port", str(rig_port), "--http-port", "0",
+                                      "--http-port-file", str(port_file), *extra], stdout=self.out,
+                                     stderr=subprocess.STDOUT)
+        self.url = f"http://127.0.0.1:{rigproc.read_port(port_file, self.proc, 30, self.out_path)}/"
+
+    def stop(self):
+        """SIGTERM: the page's server stops, exit 0."""
+        self.proc.send_signal(signal.SIGTERM)
+        rc = self.proc.wait(15)
+        self.out.close()
+        return rc
+
+
+@pytest.fixture
+def browser(tmp_path):
+    chromium = cdp.find_chromium()
+    if chromium is None:
+        pytest.skip("no chromium")
+    b = cdp.Browser(chromium, tmp_path / "profile")
+    yield b
+    b.close()
+
+
+@pytest.fixture
+def rig(tmp_path):
+    plant = rigproc.Plant(tmp_path, config=rigproc.PLANT_CONFIG)
+    r = rigproc.Rig(tmp_path, plant).start()
+    yield r
+    r.stop()
+    plant.stop()
+
+
+def shown(text):
+    """(t, height mm) of the page's readout line."""
+    m = re.search(r"t = ([0-9.]+) s\s+height ([0-9.]+) mm", text)
+    assert m, text
+    return float(m.group(1)), float(m.group(2))
+
+
+def open_page(browser, url):
+    browser.open(url)
+    assert browser.wait_js(f"/height/.test({NOW_JS})", 30), "the page never showed a reading"
+
+
+def test_read_only_page_trends_move(tmp_path, rig, browser):
+    mon = Monitor(tmp_path, rig.port)
+    try:
+        open_page(browser, mon.url)
+        t1, h1 = shown(browser.js(NOW_JS))
+        n1 = browser.js("Bokeh.documents[0].get_model_by_name('trend').data.t.length")
+        heights = {h1}
+        until = time.monotonic() + 20
+        while len(heights) < 3 and time.monotonic() < until:
+            time.sleep(0.5)
+            t2, h2 = shown(browser.js(NOW_JS))
+            heights.add(h2)
+        n2 = browser.js("Bokeh.documents[0].get_model_by_name('trend').data.t.length")
+        assert t2 > t1 and n2 > n1, (t1, t2, n1, n2)
+        assert len(heights) >= 3, f"the displayed height did not move as the plant ran: {heights}"
+        with rig.client() as c:
+            lo, hi = holding(c, "band_lower_um") / 1000, holding(c, "band_upper_um") / 1000
+        assert lo - 60 < h2 < hi + 60, (h2, lo, hi)      # a height of this rig (within its travel)
+        assert browser.js("findDeep('lm-band-set') === null && findDeep('lm-result') === null"), \
+            "a read-only page offers writes"
+        print("monitor screenshot (read-only):", browser.screenshot(ARTEFACTS / "monitor-read-only.png"))
+    finally:
+        assert mon.stop() == 0, mon.out_path.read_text()
+
+
+def set_input(browser, cls, value):
+    """Types value into the page's text input (or select) cls as a user would, then the change event."""
+    assert browser.js(f"""(() => {{ const el = inner('{cls}', 'input, select'); if (!el) return false;
+        el.focus(); el.value = {json.dumps(value)}; el.dispatchEvent(new Event('input', {{bubbles: true}}));
+        el.dispatchEvent(new Event('change', {{bubbles: true}})); return true; }})()"""), cls
+
+
+def click(browser, cls):
+    assert browser.js(f"(() => {{ const b = inner('{cls}', 'button'); if (!b) return false; b.click(); return true; }})()"), cls
+
+
+def result_after(browser, cls):
+    """Clicks cls's button and returns the write's result line once it changed."""
+    before = browser.js("(textDeep('lm-result') || '')")
+    click(browser, cls)
+    return browser.wait_js(f"(() => {{ const t = textDeep('lm-result') || '';"
+                           f" return t !== {json.dumps(before)} ? t : ''; }})()", 10)
+
+
+def test_writes_round_trip(tmp_path, rig, browser):
+    mon = Monitor(tmp_path, rig.port, "--allow-writes")
+    try:
+        open_page(browser, mon.url)
+        assert browser.wait_js("(inner('lm-band-lower', 'input') || {}).value", 20), "band inputs never filled"
+        with rig.client() as c:
+            set_input(browser, "lm-band-lower", "395.000")
+            set_input(browser, "lm-band-upper", "402.500")
+            assert "written" in result_after(browser, "lm-band-set")
+            assert (holding(c, "band_lower_um"), holding(c, "band_upper_um")) == (395000, 402500)
+            assert browser.wait_js("/band_lower_um\\s+395000\\s/.test(textDeep('lm-settings') || '')", 5), \
+                "the page's settings never showed the written band"
+
+            set_input(browser, "lm-band-lower", "403.000")          # above the upper edge: refused
+            text = result_after(browser, "lm-band-set")
+            assert "refused" in text and "band_order" in text, text
+            assert (holding(c, "band_lower_um"), holding(c, "band_upper_um")) == (395000, 402500)
+            rr = c.read_input_registers(REGS["last_refusal_reason"]["address"], count=1)
+            assert rr.registers[0] == REGS["last_refusal_reason"]["enum"]["band_order"]
+
+            set_input(browser, "lm-mode", "off")
+            assert "written" in result_after(browser, "lm-mode-set")
+            assert holding(c, "mode") == REGS["mode"]["enum"]["off"]
+            assert browser.wait_js("/mode\\s+off/.test(textDeep('lm-status') || '')", 5)
+
+            set_input(browser, "lm-setting", "alg3_target_permille")   # commissioning: any writable setting
+            set_input(browser, "lm-setting-value", "450")
+            assert "written" in result_after(browser, "lm-setting-set")
+            assert holding(c, "alg3_target_permille") == 450
+
+            set_input(browser, "lm-mode", "auto")
+            assert "written" in result_after(browser, "lm-mode-set")
+            assert holding(c, "mode") == REGS["mode"]["enum"]["auto"]
+        time.sleep(1.5)
+        print("monitor screenshot (writes):", browser.screenshot(ARTEFACTS / "monitor-writes.png"))
+    finally:
+        assert mon.stop() == 0, mon.out_path.read_text()
