@@ -46,6 +46,9 @@ function inner(cls, sel) {
 
 
 def find_chromium():
+    """$LEVELER_CHROMIUM, else the first of CHROMIUM_NAMES on the PATH, else None."""
+    if os.environ.get("LEVELER_CHROMIUM"):
+        return os.environ["LEVELER_CHROMIUM"]
     for name in CHROMIUM_NAMES:
         path = shutil.which(name)
         if path:

@@ -175,3 +175,11 @@ def test_writes_round_trip(tmp_path, rig, browser):
         print("monitor screenshot (writes):", browser.screenshot(ARTEFACTS / "monitor-writes.png"))
     finally:
         assert mon.stop() == 0, mon.out_path.read_text()
+
+
+if __name__ == "__main__":
+    # CTest (tests/monitor/CMakeLists.txt): 77 = skipped, only when no Chromium is installed.
+    if cdp.find_chromium() is None:
+        print(f"monitor_browser: skipped: none of {', '.join(cdp.CHROMIUM_NAMES)} installed (scripts/bootstrap)")
+        sys.exit(77)
+    sys.exit(pytest.main(["-q", "-s", "-p", "no:cacheprovider", __file__] + sys.argv[1:]))
