@@ -138,41 +138,74 @@ def result_after(browser, cls):
                            f" return t !== {json.dumps(before)} ? t : ''; }})()", 10)
 
 
+def commission(browser, c, name, text, expect):
+    """Commissioning through the page: pick the setting, wait for its current value
+    (read over Modbus) to show, type the new one, write, read it back over Modbus."""
+    set_input(browser, "lm-setting", name)
+    now = holding(c, name)
+    enum = {v: k for k, v in REGS[name].get("enum", {}).items()}
+    assert browser.wait_js(f"(inner('lm-setting-value', 'input') || {{}}).value === {json.dumps(enum.get(now, str(now)))}",
+                           5), f"{name}: the page did not show its current value {now}"
+    set_input(browser, "lm-setting-value", text)
+    assert "written" in result_after(browser, "lm-setting-set")
+    assert holding(c, name) == expect
+
+
+def band_writes(browser, c):
+    set_input(browser, "lm-band-lower", "395.000")
+    set_input(browser, "lm-band-upper", "402.500")
+    assert "written" in result_after(browser, "lm-band-set")
+    assert (holding(c, "band_lower_um"), holding(c, "band_upper_um")) == (395000, 402500)
+    assert browser.wait_js("/band_lower_um\\s+395000\\s/.test(textDeep('lm-settings') || '')", 5), \
+        "the page's settings never showed the written band"
+    set_input(browser, "lm-band-lower", "403.000")          # above the upper edge: refused
+    text = result_after(browser, "lm-band-set")
+    assert "refused" in text and "band_order" in text, text
+    assert (holding(c, "band_lower_um"), holding(c, "band_upper_um")) == (395000, 402500)
+    rr = c.read_input_registers(REGS["last_refusal_reason"]["address"], count=1)
+    assert rr.registers[0] == REGS["last_refusal_reason"]["enum"]["band_order"]
+
+
+def mode_write(browser, c, mode):
+    set_input(browser, "lm-mode", mode)
+    assert "written" in result_after(browser, "lm-mode-set")
+    assert holding(c, "mode") == REGS["mode"]["enum"][mode]
+    assert browser.wait_js(f"/mode\\s+{mode}/.test(textDeep('lm-status') || '')", 5)
+
+
+def learnt_up_line(browser, c):
+    """Algorithm 3 learns the UPlimit line in the climb after the load step; the page's
+    line must pass through the learnt pressure at the target height with the learnt slope."""
+    up = rigproc.wait_until(lambda: holding(c, "alg3_up_pa"), 40, 0.5)
+    assert up, "algorithm 3 learnt no UPlimit line in 40 s"
+    lo, hi = holding(c, "band_lower_um"), holding(c, "band_upper_um")
+    target_mm = (lo + holding(c, "alg3_target_permille") * (hi - lo) / 1000) / 1000
+    slope_kpa_per_mm = holding(c, "alg3_line_slope_pa_per_mm") / 1000
+    line_js = "Bokeh.documents[0].get_model_by_name('up_line').data"
+
+    def matches():
+        d = browser.js(f"(() => {{ const d = {line_js}; return {{x: Array.from(d.x), y: Array.from(d.y)}}; }})()")
+        if len(d["x"]) != 2:
+            return False
+        slope = (d["y"][1] - d["y"][0]) / (d["x"][1] - d["x"][0])
+        at_target = d["y"][0] + slope * (target_mm - d["x"][0])
+        return abs(slope - slope_kpa_per_mm) < 1e-6 and abs(at_target - holding(c, "alg3_up_pa") / 1000) < 0.01
+    assert rigproc.wait_until(matches, 5, 0.2), f"the page's UPlimit line is not the learnt one ({up} Pa)"
+
+
 def test_writes_round_trip(tmp_path, rig, browser):
     mon = Monitor(tmp_path, rig.port, "--allow-writes")
     try:
         open_page(browser, mon.url)
         assert browser.wait_js("(inner('lm-band-lower', 'input') || {}).value", 20), "band inputs never filled"
         with rig.client() as c:
-            set_input(browser, "lm-band-lower", "395.000")
-            set_input(browser, "lm-band-upper", "402.500")
-            assert "written" in result_after(browser, "lm-band-set")
-            assert (holding(c, "band_lower_um"), holding(c, "band_upper_um")) == (395000, 402500)
-            assert browser.wait_js("/band_lower_um\\s+395000\\s/.test(textDeep('lm-settings') || '')", 5), \
-                "the page's settings never showed the written band"
-
-            set_input(browser, "lm-band-lower", "403.000")          # above the upper edge: refused
-            text = result_after(browser, "lm-band-set")
-            assert "refused" in text and "band_order" in text, text
-            assert (holding(c, "band_lower_um"), holding(c, "band_upper_um")) == (395000, 402500)
-            rr = c.read_input_registers(REGS["last_refusal_reason"]["address"], count=1)
-            assert rr.registers[0] == REGS["last_refusal_reason"]["enum"]["band_order"]
-
-            set_input(browser, "lm-mode", "off")
-            assert "written" in result_after(browser, "lm-mode-set")
-            assert holding(c, "mode") == REGS["mode"]["enum"]["off"]
-            assert browser.wait_js("/mode\\s+off/.test(textDeep('lm-status') || '')", 5)
-
-            set_input(browser, "lm-setting", "alg3_target_permille")   # commissioning: any writable setting
-            set_input(browser, "lm-setting-value", "450")
-            assert "written" in result_after(browser, "lm-setting-set")
-            assert holding(c, "alg3_target_permille") == 450
-
-            set_input(browser, "lm-mode", "auto")
-            assert "written" in result_after(browser, "lm-mode-set")
-            assert holding(c, "mode") == REGS["mode"]["enum"]["auto"]
-        time.sleep(1.5)
-        print("monitor screenshot (writes):", browser.screenshot(ARTEFACTS / "monitor-writes.png"))
+            commission(browser, c, "algorithm", "hysteresis_aware", REGS["algorithm"]["enum"]["hysteresis_aware"])
+            band_writes(browser, c)
+            mode_write(browser, c, "off")
+            mode_write(browser, c, "auto")
+            commission(browser, c, "alg3_target_permille", "450", 450)
+            learnt_up_line(browser, c)
+        print("monitor screenshot (writes, learnt line):", browser.screenshot(ARTEFACTS / "monitor-writes.png"))
     finally:
         assert mon.stop() == 0, mon.out_path.read_text()
 
