@@ -8,8 +8,11 @@ change as the plant runs, the trend's points grow) and it offers no writes.
 With --allow-writes: band, mode and a commissioning setting written through
 the page's own controls arrive in the firmware (read back over Modbus with
 pymodbus, an independent peer); a band the firmware refuses shows the
-firmware's reason on the page and changes nothing. A screenshot of the page
-is kept (LEVELER_MONITOR_ARTEFACTS, printed).
+firmware's reason on the page and changes nothing; the UPlimit line algorithm 3
+learns is drawn where the firmware has it. Over Modbus RTU: the firmware as a
+board behind a pseudo-terminal (monitor_pty_board), its height shown as its
+calibration gives it, a stall fault named, writes read back inside the firmware.
+Screenshots of the pages are kept (LEVELER_MONITOR_ARTEFACTS, printed).
 """
 import json
 import os
@@ -208,6 +211,49 @@ def test_writes_round_trip(tmp_path, rig, browser):
         print("monitor screenshot (writes, learnt line):", browser.screenshot(ARTEFACTS / "monitor-writes.png"))
     finally:
         assert mon.stop() == 0, mon.out_path.read_text()
+
+
+def calibrated_mm(channel, counts):
+    """A reading at counts through the default two-point calibration of registers.json (mm or kPa)."""
+    d = {k: REGS[f"cal_{channel}_{k}"]["default"] for k in ("raw_lo", "raw_hi", "eng_lo", "eng_hi")}
+    return (d["eng_lo"] + (counts - d["raw_lo"]) * (d["eng_hi"] - d["eng_lo"]) / (d["raw_hi"] - d["raw_lo"])) / 1000
+
+
+def test_board_over_rtu(tmp_path, browser):
+    """The firmware as a board on a pseudo-terminal (monitor_pty_board: ADC counts fixed at
+    2048/1500/1600/1700, tests/modbus/hal_pty.c), leveler-monitor over Modbus RTU. A pty
+    carries no parity bits (Linux refuses PARENB on one): 8N1 here, 8E1 on a board's line."""
+    board_bin = os.environ.get("LEVELER_PTY_BOARD")
+    if not board_bin:
+        pytest.skip("monitor_pty_board not built")
+    board = subprocess.Popen([board_bin], stdout=subprocess.PIPE, text=True)
+    mon = None
+    try:
+        pty = board.stdout.readline().split()[1]
+        mon = Monitor(tmp_path, 1, "--serial", pty, "--parity", "N", "--allow-writes")
+        open_page(browser, mon.url)
+        assert abs(shown(browser.js(NOW_JS))[1] - calibrated_mm("height", 2048)) < 0.01
+        assert browser.wait_js("(inner('lm-setting-value', 'input') || {}).value", 20), "setting input never filled"
+        set_input(browser, "lm-setting", "stall_window_s")          # a stall within 1 s: the height never rises
+        assert browser.wait_js(f"(inner('lm-setting-value', 'input') || {{}}).value === "
+                               f"'{REGS['stall_window_s']['default']}'", 5)
+        set_input(browser, "lm-setting-value", "1")
+        assert "written" in result_after(browser, "lm-setting-set")
+        assert browser.wait_js("/latched faults\\s+stall/.test(textDeep('lm-status') || '')", 10), \
+            "the page never named the stall fault"
+        set_input(browser, "lm-band-lower", "395.000")
+        set_input(browser, "lm-band-upper", "402.500")
+        assert "written" in result_after(browser, "lm-band-set")
+        set_input(browser, "lm-mode", "off")
+        assert "written" in result_after(browser, "lm-mode-set")
+        print("monitor screenshot (RTU board):", browser.screenshot(ARTEFACTS / "monitor-rtu.png"))
+    finally:
+        if mon is not None:
+            assert mon.stop() == 0, mon.out_path.read_text()
+        board.send_signal(signal.SIGTERM)
+        said = board.communicate(timeout=10)[0]
+    # read inside the firmware after the monitor let go of the line
+    assert f"mode {REGS['mode']['enum']['off']} band_lower_um 395000 band_upper_um 402500" in said, said
 
 
 if __name__ == "__main__":
