@@ -7,7 +7,7 @@
  * the firmware through its register map (the test's independent read-back):
  *
  *   pty /dev/pts/N
- *   mode 0 band_lower_um 395000 band_upper_um 402500
+ *   mode 0 band_lower_um 395000 band_upper_um 402500 latched_fault_bits 0
  */
 #define _DEFAULT_SOURCE
 #include <fcntl.h>
@@ -69,10 +69,11 @@ int main(void)
         }
         nanosleep(&nap, NULL);
     }
-    uint16_t mode = 0;
+    uint16_t mode = 0, latched = 0;
     leveler_regs_read(LEVELER_TABLE_HOLDING_REGISTER, LEVELER_HR_MODE, 1, &mode);
-    printf("mode %u band_lower_um %ld band_upper_um %ld\n", mode, read_i32(LEVELER_HR_BAND_LOWER_UM),
-           read_i32(LEVELER_HR_BAND_UPPER_UM));
+    leveler_regs_read(LEVELER_TABLE_INPUT_REGISTER, LEVELER_IR_LATCHED_FAULT_BITS, 1, &latched);
+    printf("mode %u band_lower_um %ld band_upper_um %ld latched_fault_bits %u\n", mode,
+           read_i32(LEVELER_HR_BAND_LOWER_UM), read_i32(LEVELER_HR_BAND_UPPER_UM), latched);
     close(slave);
     close(master);
     return 0;

@@ -118,6 +118,8 @@ def test_read_only_page_trends_move(tmp_path, rig, browser):
         assert browser.js("findDeep('lm-band-set') === null && findDeep('lm-result') === null"), \
             "a read-only page offers writes"
         print("monitor screenshot (read-only):", browser.screenshot(ARTEFACTS / "monitor-read-only.png"))
+        rig.stop()                                          # the rig goes away: the page says so, the monitor lives on
+        assert browser.wait_js(f"/link:/.test({NOW_JS})", 15), browser.js(NOW_JS)
     finally:
         assert mon.stop() == 0, mon.out_path.read_text()
 
@@ -246,6 +248,9 @@ def test_board_over_rtu(tmp_path, browser):
         assert "written" in result_after(browser, "lm-band-set")
         set_input(browser, "lm-mode", "off")
         assert "written" in result_after(browser, "lm-mode-set")
+        assert "written" in result_after(browser, "lm-clear-set")      # off: no fill, so no new stall
+        assert browser.wait_js("/latched faults\\s+none/.test(textDeep('lm-status') || '')", 5), \
+            "the page still shows a latched fault after clear faults"
         print("monitor screenshot (RTU board):", browser.screenshot(ARTEFACTS / "monitor-rtu.png"))
     finally:
         if mon is not None:
@@ -253,7 +258,8 @@ def test_board_over_rtu(tmp_path, browser):
         board.send_signal(signal.SIGTERM)
         said = board.communicate(timeout=10)[0]
     # read inside the firmware after the monitor let go of the line
-    assert f"mode {REGS['mode']['enum']['off']} band_lower_um 395000 band_upper_um 402500" in said, said
+    assert f"mode {REGS['mode']['enum']['off']} band_lower_um 395000 band_upper_um 402500 latched_fault_bits 0" \
+        in said, said
 
 
 if __name__ == "__main__":

@@ -51,7 +51,7 @@ class Link:
             raise LinkError("not connected")
         try:
             rr = getattr(self.client, fn)(*args, device_id=self.device_id, **kw)
-        except ModbusException as e:
+        except (ModbusException, OSError) as e:   # pymodbus lets a reset connection's OSError through
             self.client.close()
             raise LinkError(str(e))
         return rr
@@ -107,6 +107,7 @@ class Poller(threading.Thread):
         self.samples = collections.deque(maxlen=keep)
         self.error = None           # the last read's failure, None while reads succeed
         self.seq = 0
+        self._ring_lock = threading.Lock()      # the page's sessions read while this thread appends
         self._halt = threading.Event()
         self._t0 = time.monotonic()
 
@@ -115,8 +116,9 @@ class Poller(threading.Thread):
         while not self._halt.is_set():
             try:
                 values = self.link.read_all()
-                self.seq += 1
-                self.samples.append((self.seq, time.monotonic() - self._t0, values))
+                with self._ring_lock:
+                    self.seq += 1
+                    self.samples.append((self.seq, time.monotonic() - self._t0, values))
                 self.error = None
             except LinkError as e:
                 self.error = str(e)
@@ -125,7 +127,8 @@ class Poller(threading.Thread):
 
     def since(self, seq):
         """The samples newer than seq (all kept ones for seq 0)."""
-        return [s for s in list(self.samples) if s[0] > seq]
+        with self._ring_lock:
+            return [s for s in self.samples if s[0] > seq]
 
     def stop(self):
         self._halt.set()
