@@ -7,6 +7,7 @@ controller's state, faults, the learnt hysteresis lines and settings
   leveler-monitor --serial /dev/ttyUSB0 --baud 19200      # a board over RS-485
   then open http://127.0.0.1:5006/
 """
+import logging
 import signal
 import socket
 import sys
@@ -59,6 +60,7 @@ def free_port(address):
 
 def main(argv=None):
     a = parse_args(sys.argv[1:] if argv is None else argv)
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)   # a lost link is said once (modbus.Poller), not per poll
     try:
         regmap = RegisterMap(a.regmap)
     except RegmapError as e:

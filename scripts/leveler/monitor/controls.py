@@ -4,12 +4,11 @@ write of the register map, validated whole by the firmware; a refusal shows
 the firmware's reason (last_refusal_reason's name, modbus.py).
 """
 import html
-import sys
 
 from bokeh.layouts import column, row
 from bokeh.models import Button, Div, Select, TextInput
 
-from .modbus import LinkError, WriteRefused
+from .modbus import LinkError, WriteRefused, say
 from .regmap import RegmapError
 
 UM_PER_MM = 1000
@@ -74,7 +73,7 @@ class Controls:
 
     def say(self, text, log):
         self.result.text = text
-        print(f"leveler-monitor: write {log}", file=sys.stderr, flush=True)
+        say(f"write {log}")
 
     def write_mode(self):
         self.write({"mode": self.regmap["mode"]["enum"][self.mode.value]}, f"mode = {self.mode.value}")

@@ -7,6 +7,7 @@ why in the input register last_refusal_reason (docs/registers.md), read here
 and named from registers.json.
 """
 import collections
+import sys
 import threading
 import time
 
@@ -97,6 +98,10 @@ class Link:
         return WriteRefused(what, reason)
 
 
+def say(text):
+    print(f"leveler-monitor: {text}", file=sys.stderr, flush=True)
+
+
 class Poller(threading.Thread):
     """Reads the whole map every 1/rate_hz seconds into a ring of
     (seq, t, values); t is seconds since the poller started."""
@@ -119,8 +124,12 @@ class Poller(threading.Thread):
                 with self._ring_lock:
                     self.seq += 1
                     self.samples.append((self.seq, time.monotonic() - self._t0, values))
+                if self.error is not None:
+                    say("link back")
                 self.error = None
             except LinkError as e:
+                if self.error is None:
+                    say(f"link lost: {e}")
                 self.error = str(e)
             next_at = max(next_at + self.period, time.monotonic())
             self._halt.wait(next_at - time.monotonic())
