@@ -215,6 +215,28 @@ def test_writes_round_trip(tmp_path, rig, browser):
         assert mon.stop() == 0, mon.out_path.read_text()
 
 
+def test_read_only_rig_refuses_the_pages_writes(tmp_path, browser):
+    """A rig whose supervision is read_only answers every write with exception 01:
+    the page says so and nothing changes."""
+    plant = rigproc.Plant(tmp_path)
+    r = rigproc.Rig(tmp_path, plant, overrides={"supervision": {"read_only": "true"}}).start()
+    mon = None
+    try:
+        mon = Monitor(tmp_path, r.port, "--allow-writes")
+        open_page(browser, mon.url)
+        assert browser.wait_js("(inner('lm-band-lower', 'input') || {}).value", 20), "band inputs never filled"
+        set_input(browser, "lm-mode", "off")
+        text = result_after(browser, "lm-mode-set")
+        assert "not written" in text and "exception 01" in text, text
+        with r.client() as c:
+            assert holding(c, "mode") == REGS["mode"]["enum"]["auto"]
+    finally:
+        if mon is not None:
+            assert mon.stop() == 0, mon.out_path.read_text()
+        r.stop()
+        plant.stop()
+
+
 def calibrated_mm(channel, counts):
     """A reading at counts through the default two-point calibration of registers.json (mm or kPa)."""
     d = {k: REGS[f"cal_{channel}_{k}"]["default"] for k in ("raw_lo", "raw_hi", "eng_lo", "eng_hi")}

@@ -14,7 +14,7 @@ import time
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
-EXCEPTION_ILLEGAL_ADDRESS, EXCEPTION_ILLEGAL_VALUE = 2, 3
+EXCEPTION_ILLEGAL_FUNCTION, EXCEPTION_ILLEGAL_ADDRESS, EXCEPTION_ILLEGAL_VALUE = 1, 2, 3
 TABLE_READS = {"input": "read_input_registers", "holding": "read_holding_registers",
                "discrete": "read_discrete_inputs", "coil": "read_coils"}
 
@@ -89,6 +89,9 @@ class Link:
 
     def _refusal(self, what, rr):
         code = getattr(rr, "exception_code", None)
+        if code == EXCEPTION_ILLEGAL_FUNCTION:
+            return LinkError(f"{what}: the server takes no writes from here (exception 01: a rig's "
+                             f"[supervision] read_only or writers, or a certificate's role)")
         if code != EXCEPTION_ILLEGAL_VALUE:
             return LinkError(f"{what}: {rr}")
         reg = self.regmap["last_refusal_reason"]
