@@ -76,10 +76,15 @@ def browser(tmp_path):
     b.close()
 
 
+# rigproc's 5 ms sensor timeout fails scans (and latches sensor faults) when Chromium and
+# the other tests load the machine; these tests are about the page, not the link.
+SENSORS_SLACK = {"sensors": {"timeout_ms": 50}}
+
+
 @pytest.fixture
 def rig(tmp_path):
     plant = rigproc.Plant(tmp_path, config=rigproc.PLANT_CONFIG)
-    r = rigproc.Rig(tmp_path, plant).start()
+    r = rigproc.Rig(tmp_path, plant, overrides=SENSORS_SLACK).start()
     yield r
     r.stop()
     plant.stop()
@@ -182,7 +187,9 @@ def learnt_up_line(browser, c):
     """Algorithm 3 learns the UPlimit line in the climb after the load step; the page's
     line must pass through the learnt pressure at the target height with the learnt slope."""
     up = rigproc.wait_until(lambda: holding(c, "alg3_up_pa"), 40, 0.5)
-    assert up, "algorithm 3 learnt no UPlimit line in 40 s"
+    if not up:
+        rr = c.read_input_registers(REGS["latched_fault_bits"]["address"], count=1)
+        pytest.fail(f"algorithm 3 learnt no UPlimit line in 40 s (latched fault bits {rr.registers})")
     lo, hi = holding(c, "band_lower_um"), holding(c, "band_upper_um")
     target_mm = (lo + holding(c, "alg3_target_permille") * (hi - lo) / 1000) / 1000
     slope_kpa_per_mm = holding(c, "alg3_line_slope_pa_per_mm") / 1000
@@ -219,7 +226,7 @@ def test_read_only_rig_refuses_the_pages_writes(tmp_path, browser):
     """A rig whose supervision is read_only answers every write with exception 01:
     the page says so and nothing changes."""
     plant = rigproc.Plant(tmp_path)
-    r = rigproc.Rig(tmp_path, plant, overrides={"supervision": {"read_only": "true"}}).start()
+    r = rigproc.Rig(tmp_path, plant, overrides={"supervision": {"read_only": "true"}, **SENSORS_SLACK}).start()
     mon = None
     try:
         mon = Monitor(tmp_path, r.port, "--allow-writes")

@@ -15,8 +15,8 @@ UM_PER_MM = 1000
 
 
 class Controls:
-    def __init__(self, regmap, link, poller):
-        self.regmap, self.link, self.poller = regmap, link, poller
+    def __init__(self, regmap, link):
+        self.regmap, self.link = regmap, link
         modes = list(regmap["mode"]["enum"])
         self.mode = Select(title="mode", options=modes, value=modes[0], css_classes=["lm-mode"], width=140)
         self.lower = TextInput(title="band lower (mm)", css_classes=["lm-band-lower"], width=140)

@@ -99,7 +99,7 @@ class Page:
         self.now = Div(text="waiting for the first reading", name="now", css_classes=["lm-now"])
         self.status = Div(text="", name="status", css_classes=["lm-status"], width=460)
         self.settings = Div(text="", name="settings", css_classes=["lm-settings"], sizing_mode="stretch_width")
-        self.controls = controls.Controls(regmap, link, poller) if link is not None else None
+        self.controls = controls.Controls(regmap, link) if link is not None else None
         doc.title = "leveler-monitor"
         doc.add_root(self.layout())
         doc.add_periodic_callback(self.update, max(50, int(1000 / rate_hz)))
