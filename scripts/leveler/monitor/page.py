@@ -19,6 +19,7 @@ ACTUATORS = (("compressor_on", "comp", "compressor"), ("spring_valve_open", "spr
              ("vent_valve_open", "vent", "vent valve"), ("acc_valve_open", "acc", "accumulator valve"))
 LINE_HALF_SPAN_MM = 50.8     # the hysteresis lines are drawn 2 in either side of the target
 UNIT_SHOWN = {"um": (1e-3, "mm"), "Pa": (1e-3, "kPa")}
+LEARNT_SHADE = " style='background:#fff3d6'"
 
 
 def shown(regmap, name, value):
@@ -149,12 +150,19 @@ def value_text(regmap, name, value):
 
 
 def settings_html(regmap, v):
-    """The settings (holding registers) as a table: name, value, unit, description."""
-    cells = "".join(f"<tr><td>{r['name']}</td><td class='lm-set-{r['name']}'><b>{html.escape(value_text(regmap, r['name'], v[r['name']]))}"
-                    f"</b></td><td>{html.escape(r['unit'])}</td><td>{html.escape(r['description'])}</td></tr>"
-                    for r in regmap.table("holding"))
-    return ("<table style='border-collapse:collapse' cellpadding='2'><tr><th align='left'>setting</th>"
-            f"<th align='left'>value</th><th align='left'>unit</th><th align='left'>description</th></tr>{cells}</table>")
+    """The settings (holding registers) as a table: the learnt ones (registers.json's
+    descriptions say "(learnt)") first, highlighted, then the others in address order."""
+    regs = sorted(regmap.table("holding"), key=lambda r: "(learnt)" not in r["description"])
+    rows = []
+    for r in regs:
+        learnt = "(learnt)" in r["description"]
+        shade = LEARNT_SHADE if learnt else ""
+        rows.append(f"<tr{shade}><td>{r['name']}</td>"
+                    f"<td><b>{html.escape(value_text(regmap, r['name'], v[r['name']]))}</b></td>"
+                    f"<td>{html.escape(r['unit'])}</td><td>{'learnt' if learnt else ''}</td>"
+                    f"<td>{html.escape(r['description'])}</td></tr>")
+    head = "".join(f"<th align='left'>{h}</th>" for h in ("setting", "value", "unit", "", "description"))
+    return f"<table style='border-collapse:collapse' cellpadding='2'><tr>{head}</tr>{''.join(rows)}</table>"
 
 
 def status_html(regmap, v, link_error):
