@@ -14,6 +14,26 @@
 #include "leveler/regmap_desc.h"
 #include "leveler/settings.h"
 
+/* The names registers.json gives the fault codes and refusal reasons (read by
+ * supervision tools such as leveler-monitor) must be the firmware's own codes. */
+_Static_assert(LEVELER_IR_LAST_FAULT_CODE_OVERPRESSURE == LEVELER_FAULT_OVERPRESSURE &&
+                   LEVELER_IR_LAST_FAULT_CODE_RUN_TIME == LEVELER_FAULT_RUN_TIME &&
+                   LEVELER_IR_LAST_FAULT_CODE_STALL == LEVELER_FAULT_STALL &&
+                   LEVELER_IR_LAST_FAULT_CODE_SENSOR_HEIGHT == LEVELER_FAULT_SENSOR_HEIGHT &&
+                   LEVELER_IR_LAST_FAULT_CODE_SENSOR_P_SPRING == LEVELER_FAULT_SENSOR_P_SPRING &&
+                   LEVELER_IR_LAST_FAULT_CODE_SENSOR_P_PIPE == LEVELER_FAULT_SENSOR_P_PIPE &&
+                   LEVELER_IR_LAST_FAULT_CODE_SENSOR_P_ACC == LEVELER_FAULT_SENSOR_P_ACC &&
+                   LEVELER_IR_LAST_FAULT_CODE_CHATTER == LEVELER_FAULT_CHATTER,
+               "registers.json: last_fault_code's enum differs from leveler_fault_code (status.h)");
+_Static_assert(LEVELER_IR_LAST_REFUSAL_REASON_READ_ONLY == LEVELER_REASON_READ_ONLY &&
+                   LEVELER_IR_LAST_REFUSAL_REASON_OUT_OF_RANGE == LEVELER_REASON_OUT_OF_RANGE &&
+                   LEVELER_IR_LAST_REFUSAL_REASON_BAND_ORDER == LEVELER_REASON_BAND_ORDER &&
+                   LEVELER_IR_LAST_REFUSAL_REASON_LIMIT_ORDER == LEVELER_REASON_LIMIT_ORDER &&
+                   LEVELER_IR_LAST_REFUSAL_REASON_CALIBRATION == LEVELER_REASON_CALIBRATION &&
+                   LEVELER_IR_LAST_REFUSAL_REASON_BAD_ENUM == LEVELER_REASON_BAD_ENUM &&
+                   LEVELER_IR_LAST_REFUSAL_REASON_SPLIT_VALUE == LEVELER_REASON_SPLIT_VALUE,
+               "registers.json: last_refusal_reason's enum differs from leveler_reg_reason (regmap.h)");
+
 uint16_t leveler_regs_table_size(leveler_table table)
 {
     switch (table) {

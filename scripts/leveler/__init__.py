@@ -9,6 +9,7 @@ config   the simulator config as its C loader resolves it (leveler-sim --dump-co
 plot     the report figure (matplotlib, Agg)
 report   command line: python -m leveler.report --log run.csv ...
 cli      the command style every Python program shares (argparse, --version, exit codes)
+monitor  leveler-monitor: a live page of a rig or board over Modbus (docs/monitor.md)
 
 Everything inside is SI with absolute pressures; thesis units (in, psia, lb)
 appear only where results are set beside the thesis.

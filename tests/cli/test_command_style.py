@@ -36,11 +36,13 @@ PROGRAMS = {
     "leveler-sim-bench": (lambda: c_program("leveler-sim-bench"), ["--config"]),
     "leveler-diagnose": (lambda: [str(ROOT / "scripts" / "leveler-diagnose")], ["--config", "--out", "--quiet"]),
     "leveler-blindtest": (lambda: [str(ROOT / "scripts" / "leveler-blindtest")], ["--out", "--log-kind", "--json"]),
+    "leveler-monitor": (lambda: [str(ROOT / "scripts" / "leveler-monitor")], ["--host", "--port"]),
     "python -m leveler.report": (lambda: [PY, "-m", "leveler.report"], ["--config", "--log"]),
 }
 
 
-C_PROGRAMS = [n for n in PROGRAMS if not n.startswith("python") and n not in ("leveler-diagnose", "leveler-blindtest")]
+C_PROGRAMS = [n for n in PROGRAMS if not n.startswith("python")
+              and n not in ("leveler-diagnose", "leveler-blindtest", "leveler-monitor")]
 
 
 def run(argv, **kw):
@@ -157,6 +159,21 @@ def test_diagnose_equals_form_reaches_the_input_check(tmp_path):
     p = run([str(ROOT / "scripts" / "leveler-diagnose"), "--config=thesis-900lb", f"--out={tmp_path / 'o'}",
              f"--features={tmp_path / 'none.json'}"])
     assert p.returncode == 2 and "none.json" in p.stderr
+
+
+def test_monitor_exit_codes(tmp_path):
+    """leveler-monitor: bad options and a missing register map are 2, no Modbus peer is 1."""
+    import socket
+    monitor = [str(ROOT / "scripts" / "leveler-monitor")]
+    p = run(monitor + ["--rate=20"])
+    assert p.returncode == 2 and "--rate: 20" in p.stderr
+    p = run(monitor + [f"--regmap={tmp_path / 'none.json'}"])
+    assert p.returncode == 2 and "none.json" in p.stderr
+    with socket.socket() as s:          # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    p = run(monitor + [f"--port={port}", "--http-port=0"])
+    assert p.returncode == 1 and f"127.0.0.1:{port}: no answer" in p.stderr
 
 
 def test_firmware_version_register_over_modbus(tmp_path):
