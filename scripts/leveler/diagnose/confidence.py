@@ -67,8 +67,8 @@ def _contenders(ranking, lead_pct, pts):
 def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained_finding, rival=None):
     """{level, probability, set, why, experiment}. effects: the named effect(s)
     ([] for none); ranking: candidates by held-out shrink over the calibrated model;
-    rival: mis-set nominal values that explain the held-out runs as well as the
-    named effect (pipeline._effect_first)."""
+    rival: an effect that, on the config as given, explains the held-out runs as
+    well as the kept calibration (pipeline._effect_first)."""
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
     margin = best["shrink_pct"] - runner["shrink_pct"] if runner else 100.0
@@ -76,6 +76,12 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
     exp = (experiment or {}).get("ranked", [{}])[0].get("schedule") if experiment else None
     if unexplained_finding:
         level, cset, why = "unsure", [], unexplained_finding["why"]
+    elif rival:
+        level = "unsure"
+        cset = list(dict.fromkeys(list(effects) + ["calibration: " + ", ".join(rival["moved"])] + [rival["effect"]]))
+        why = (f"mis-set {', '.join(rival['moved'])} and {rival['effect']} explain the held-out runs about as "
+               f"well (held-out gaps {rival['calibration_gap']:.3f} and {rival['effect_gap']:.3f}); "
+               f"calibrated before blaming")
     elif not effects:
         quiet = noise > 0 and cal_gap <= NONE_QUIET * noise
         level = "sure" if quiet else "likely"
@@ -86,10 +92,6 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
     elif lookalikes:
         level, cset = "unsure", list(lookalikes)
         why = "these candidates explain the logs equally well (each refitted on the other's runs)"
-    elif rival and effects:
-        level, cset = "unsure", list(effects) + ["calibration: " + ", ".join(rival["moved"])]
-        why = (f"mis-set {', '.join(rival['moved'])} explain the held-out runs about as well "
-               f"(held-out gap {rival['calibration_gap']:.3f} against {rival['effect_gap']:.3f})")
     elif (margin >= SURE_MARGIN_PTS and best["shrink_pct"] >= SURE_EFFECT_SHRINK
           and (noise <= 0 or left <= UNEXPLAINED_NOISE * noise)):
         level, cset = "sure", list(effects)

@@ -306,37 +306,39 @@ def _calibration_step(sim, config, calib, holdout, mode, folder, threshold, prog
     return rep, rep.pop("config_file"), calib, holdout
 
 
-# Calibration stands against the best effect only when it leaves a held-out gap
-# smaller by this share of the effect's (and by the noise gate); within that share
-# the two explain the held-out runs alike and the verdict says so (confidence.py).
-CALIBRATION_FIRST_PCT = 10.0
+# The best effect, fitted on the config as given, takes the gap from the calibration
+# only when it leaves a held-out gap smaller by this share of the calibrated one (and
+# by the noise gate): calibrate before blaming. Within this share either way the two
+# explain the held-out runs alike, and the verdict's confidence says so.
+EFFECT_FIRST_PCT = 10.0
 
 
 def _effect_first(calibration, best, gate, progress):
     """Whether the gap is the leading effect's rather than mis-set nominal values.
-    Both were fitted on the calibration runs, the effect on the config as given,
-    and are judged on held-out runs neither saw. The calibration stands (and an
-    effect must then explain what it leaves) only when it is clearly better: a
-    few nominal values bent far enough mimic many effects. When neither is
-    clearly better, the effect path is taken and the calibration is recorded as
-    its look-alike (`rival`)."""
+    Both were fitted on the calibration runs (the effect on the config as given) and
+    are judged on held-out runs neither saw. Returns True when the effect is clearly
+    better (the calibration, which bends nominal values to mimic it, is then not
+    kept); otherwise the calibration stands and an effect must explain what it
+    leaves. Alike within EFFECT_FIRST_PCT: the effect is recorded as the
+    calibration's look-alike (`rival`)."""
     g_cal, g_fx = calibration["holdout_gap"]["after"], best["holdout_gap"]
-    if g_cal <= (1.0 - CALIBRATION_FIRST_PCT / 100.0) * g_fx and g_fx - g_cal >= gate:
+    share = EFFECT_FIRST_PCT / 100.0
+    if not (g_fx <= (1.0 - share) * g_cal and g_cal - g_fx >= gate):
+        if g_fx <= (1.0 + share) * g_cal:
+            calibration["rival"] = {"effect": best["effect"], "moved": list(calibration["moved"]),
+                                    "effect_gap": g_fx, "calibration_gap": g_cal}
+            progress(f"      {best['effect']} alone leaves {g_fx:.3f}, calibration {g_cal:.3f}: alike; "
+                     f"calibrated before blaming")
         return False
-    moved = calibration["moved"]
-    if g_fx >= (1.0 - CALIBRATION_FIRST_PCT / 100.0) * g_cal and moved:
-        calibration["rival"] = {"effect": best["effect"], "moved": list(moved), "effect_gap": g_fx,
-                                "calibration_gap": g_cal}
     calibration.update(kept=False, moved=[], superseded_by=best["effect"],
                        why=calibration["why"].replace(", kept", "") +
-                       f"; {best['effect']} alone leaves {g_fx:.3f}: calibration is not clearly better, "
-                       f"not kept")
+                       f"; {best['effect']} alone leaves {g_fx:.3f}: the effect explains the held-out runs "
+                       f"better than calibration, which is not kept")
     for p in calibration["parameters"]:
         p["moved"] = False
     calibration["ini"] = None
     progress(f"      {best['effect']} leaves a held-out gap of {g_fx:.3f}, calibration {g_cal:.3f}: "
-             + ("alike" if calibration.get("rival") else "the effect explains it better")
-             + "; calibration not kept")
+             f"the effect explains it better; calibration not kept")
     return True
 
 
@@ -442,8 +444,9 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
                           design_pair)
     sure = confidence.assess(effects, ranking, gaps[1], noise, look["lookalikes"] and look["lookalikes"]["group"],
                              look["experiment"], finding, (calibration or {}).get("rival"))
-    if not features and effects and len(sure["set"]) >= 2 and not look["experiment"]:
-        look = dict(look, experiment=_experiment(cal_problem, ranking, sure["set"][:2], progress))
+    designable = [e for e in sure["set"] if e in fx.NAMES]     # effects, not "calibration: ..."
+    if not features and effects and len(designable) >= 2 and not look["experiment"]:
+        look = dict(look, experiment=_experiment(cal_problem, ranking, designable[:2], progress))
         sure["experiment"] = look["experiment"]["ranked"][0]["schedule"] if look["experiment"] else None
     progress(f"      confidence: {sure['level']}"
              + (f" (right {100 * sure['probability']['p']:.0f}% of the time on truths written apart)"
