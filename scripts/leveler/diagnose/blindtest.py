@@ -264,6 +264,13 @@ def diagnose_blind(folder, out, config, extra, runs_=("cal1", "cal2"), holdout="
         return json.load(fh)
 
 
+def lookalike_set(d):
+    """What a diagnosis says it cannot tell apart: its look-alike effects, or an effect
+    and the calibration that explain the held-out runs alike (its `rival`)."""
+    rival = (d.get("calibration") or {}).get("rival")
+    return d.get("cannot_tell_apart") or ([rival["effect"], "calibration"] if rival else [])
+
+
 def run_experiment(sim, folder, d, case, params, system, kind, seed, extra, spec=None):
     """Look-alikes: run the proposed experiment on the same truth and score the
     look-alikes, fitted on the calibration runs as before, on it: the experiment
@@ -276,7 +283,7 @@ def run_experiment(sim, folder, d, case, params, system, kind, seed, extra, spec
     rig = os.path.join(folder, "rig.ini")
     write_truth_log(sim, os.path.join(logs, "experiment.csv"), rig, system, steps, end, case, params, kind, rng,
                     design.schedule_writes(steps), form_id=None if spec is None else spec["form_id"])
-    group = ",".join(d["cannot_tell_apart"])
+    group = ",".join(d["cannot_tell_apart"] or [x for x in lookalike_set(d) if x in fx.NAMES])
     d2 = diagnose_blind(logs, os.path.join(folder, "diagnosis-experiment"), SYSTEMS[system][0],
                         list(extra) + ["--effects", group], holdout="experiment")
     return d2["effect"]
@@ -297,7 +304,7 @@ def run_case(sim, top, seed, case, index, extra, force=(None, None), slot=None):
     d = diagnose_blind(logs, os.path.join(folder, "diagnosis"), SYSTEMS[system][0], extra)
     r = {"seed": seed, "truth": case, "system": system, "log": kind, "named": d["effect"],
          "shrink_pct": d["shrink_pct"], "margin_pct": d["margin_pct"], "seconds": time.perf_counter() - t0,
-         "lookalikes": d.get("cannot_tell_apart", []),
+         "lookalikes": lookalike_set(d),
          "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]],
          "effects": d.get("effects", []), "confidence": confidence_level(d),
          "calibrated": _calibration_names(d.get("calibration")),
@@ -375,7 +382,7 @@ def run_form_case(sim, top, seed, spec, index, extra, force=(None, None)):
     r = {"family": spec["family"], "form": spec["form"], "seed": seed, "truth": spec["truth"], "system": system,
          "log": kind, "named": d["effect"], "verdict": d["effect"], "shrink_pct": d["shrink_pct"],
          "margin_pct": d.get("margin_pct"), "seconds": time.perf_counter() - t0, "truth_params": params,
-         "lookalikes": d.get("cannot_tell_apart", []), "effects": d.get("effects", []),
+         "lookalikes": lookalike_set(d), "effects": d.get("effects", []),
          "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]],
          "calibration": d.get("calibration"), "calibrated": cal, "confidence": confidence_level(d),
          "unexplained": d.get("unexplained", d.get("not_explained"))}
@@ -538,10 +545,10 @@ def main(argv=None):
     ap.add_argument("--pairs", type=int, default=2, help="pair cases per seed (default 2)")
     ap.add_argument("--min-pairs", type=float, default=80.0,
                     help="--check: least %% of pair cases with both effects among the top two")
-    ap.add_argument("--family", choices=FAMILIES + ("all",), default="present",
+    ap.add_argument("--family", choices=FAMILIES + ("apart", "all"), default="present",
                     help="truth family: present (the first family, truth.json; default), offform (forms "
                          "written from the physics alone, truth2.json), unknown (effects outside the "
-                         "catalogue), misset (one nominal parameter mis-set, no effect), all")
+                         "catalogue), misset (one nominal parameter mis-set, no effect), apart (those three), all")
     ap.add_argument("--forms", help="offform/unknown/misset: comma-separated subset of forms")
     ap.add_argument("--report", metavar="FILE", help="print the family reports of a saved --json again and stop")
     ap.add_argument("--write-confidence", metavar="FILE",
@@ -617,7 +624,7 @@ def main(argv=None):
 
 def main_families(a):
     """--family other than present (all: present first, as main runs it, then the rest)."""
-    fams = list(FAMILIES) if a.family == "all" else [a.family]
+    fams = {"all": list(FAMILIES), "apart": [f for f in FAMILIES if f != "present"]}.get(a.family, [a.family])
     top = a.keep or tempfile.mkdtemp(prefix="leveler-blindtest-")
     os.makedirs(top, exist_ok=True)
     rc, out = 0, {}
@@ -652,6 +659,10 @@ def main_families(a):
         out[fam] = {"right": sum(r["right"] for r in fam_res), "cases": len(fam_res)}
     print()
     print("\n".join(reliability(results)))
+    if a.write_confidence:
+        apart = [r for r in results if r["family"] in ("offform", "unknown")]
+        write_confidence(a.write_confidence, apart, f"{len(apart)} offform/unknown cases, leveler "
+                                                    f"{leveler.__version__}")
     print(f"total {time.perf_counter() - t_all:.0f} s; logs and diagnoses in {top}")
     if a.json:
         with open(a.json, "w") as fh:

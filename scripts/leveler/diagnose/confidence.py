@@ -25,7 +25,7 @@ LIKELY_MARGIN_PTS = 10.0
 SURE_EFFECT_SHRINK = 60.0   # and closes this much of what the calibrated model leaves
 EXPLAINS_PCT = 50.0         # a candidate closing less than half of a gap above noise does not explain it
 UNEXPLAINED_NOISE = 3.0     # "above noise": a held-out gap this many times the logs' noise gap
-NONE_QUIET = 2.0            # a `none` is sure when what is left is within this many noise gaps
+NONE_QUIET = 1.3            # a `none` is sure when what is left is within 1.3 noise gaps (the true model: ~1)
 
 
 def _measured():

@@ -207,7 +207,8 @@ def separation(problem, run, a, b, noise, steps=None):
     hysteresis may break free a pulse earlier or later for no reason the rig
     can control); and whether either simulation saw the supervisor override the
     schedule's manual rows."""
-    sim = lambda r, e: problem.sim.simulate(problem.config, r, e[0], e[1], CLOSED_LOOP)
+    # a candidate is (effect, params) on the problem's config, or (effect, params, config, label)
+    sim = lambda r, e: problem.sim.simulate(e[2] if len(e) > 2 else problem.config, r, e[0], e[1], CLOSED_LOOP)
     ta, tb = sim(run, a), sim(run, b)
     edge = 0.0
     for sign in (-1.0, 1.0):
@@ -218,7 +219,9 @@ def separation(problem, run, a, b, noise, steps=None):
 
 
 def propose(problem, a, b, noise=None):
-    """Rank the schedules for separating a = (effect, params) from b; best first, by
+    """Rank the schedules for separating a = (effect, params) from b (or either as
+    (effect or None, params, config, label): a model with another config, such as the
+    calibrated one against an effect on the config as given); best first, by
     the predicted difference beyond the knife edge (a difference that an
     imperceptible change of the start also makes is no evidence). A manual
     sequence the supervisor would override (in either candidate's simulation)
@@ -238,7 +241,9 @@ def propose(problem, a, b, noise=None):
                  "knife_edge_noise_units": edge}
         (unsafe if over else ranked).append(entry)
     ranked.sort(key=lambda r: (-r["separation_noise_units"], -r["difference_noise_units"]))
-    return {"between": [a[0], b[0]], "noise": noise, "ranked": ranked, "unsafe": [u["schedule"] for u in unsafe]}
+    label = lambda e: e[3] if len(e) > 3 else e[0]
+    return {"between": [label(a), label(b)], "noise": noise, "ranked": ranked,
+            "unsafe": [u["schedule"] for u in unsafe]}
 
 
 def write_schedule(path, proposal, columns=None):

@@ -284,6 +284,17 @@ def _experiment(problem, ranking, pair, progress):
     return exp
 
 
+def _rival_experiment(sim, config, calib, cal_config, as_given, rival, progress):
+    """The experiment that best tells the calibrated config from the rival effect on
+    the config as given (design.py, each model with its own config)."""
+    by = {r["effect"]: r for r in as_given}
+    fx_side = (rival["effect"], _params_of(by[rival["effect"]]))
+    exp = design.propose(fit.Problem(sim, config, calib), fx_side, (None, {}, cal_config, "calibration"))
+    progress(f"      proposed experiment to tell the calibration from {rival['effect']}: "
+             f"{exp['ranked'][0]['schedule']}")
+    return exp
+
+
 def _threshold(hold_problem, nominal_hold_gap, features):
     """(sensitivity floor, the shrink an explanation must reach on the held-out runs)."""
     if features:
@@ -409,6 +420,7 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
     hold_problem = user_hold
     ranking, fits = _effects_step(spec, config, calib, holdout, mode, candidates, jobs, fit_opts, user_hold, gaps,
                                   progress)
+    as_given = ranking
     gate = 0.0 if features else fit.NOISE_GAIN * fit.noise_gap(holdout)
     if calibration:     # the candidates on the config as given, beside the calibration's figures
         calibration["effects_as_given"] = [{k: r[k] for k in ("effect", "holdout_gap", "shrink_pct")}
@@ -442,8 +454,12 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
     effects = kept["effects"] if kept and named else ([winner] if named else [])
     look = lookalike_step(cal_problem, ranking, threshold, named and named_single and not features, progress,
                           design_pair)
+    rival = (calibration or {}).get("rival")
     sure = confidence.assess(effects, ranking, gaps[1], noise, look["lookalikes"] and look["lookalikes"]["group"],
-                             look["experiment"], finding, (calibration or {}).get("rival"))
+                             look["experiment"], finding, rival)
+    if not features and rival and not look["experiment"] and not design_pair:
+        look = dict(look, experiment=_rival_experiment(sim, config, calib, work, as_given, rival, progress))
+        sure["experiment"] = look["experiment"]["ranked"][0]["schedule"]
     designable = [e for e in sure["set"] if e in fx.NAMES]     # effects, not "calibration: ..."
     if not features and effects and len(designable) >= 2 and not look["experiment"]:
         look = dict(look, experiment=_experiment(cal_problem, ranking, designable[:2], progress))
@@ -451,7 +467,7 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
     progress(f"      confidence: {sure['level']}"
              + (f" (right {100 * sure['probability']['p']:.0f}% of the time on truths written apart)"
                 if sure["probability"] else "") + f": {sure['why']}"
-             + (f"; {'cannot separate' if effects else 'nearest'}: {', '.join(sure['set'])}"
+             + (f"; {'cannot separate' if effects or rival else 'nearest'}: {', '.join(sure['set'])}"
                 if sure["level"] != "sure" and sure["set"] else ""))
 
     progress(f"[4/4] before/after on held-out runs (the config as given against "
