@@ -40,8 +40,9 @@ def wheel(tmp_path_factory):
     out = tmp_path_factory.mktemp("wheel")
     build_dir = os.environ["LEVELER_WHEEL_BUILD_DIR"]
     # no build isolation: scikit-build-core from .venv (scripts/requirements.txt), the system's cmake
+    jobs = os.environ.get("CMAKE_BUILD_PARALLEL_LEVEL", "2")   # ninja would take every core
     run([sys.executable, "-m", "pip", "wheel", str(ROOT), "-w", str(out), "--no-deps", "--no-build-isolation",
-         f"-Cbuild-dir={build_dir}"])
+         f"-Cbuild-dir={build_dir}"], env=dict(os.environ, CMAKE_BUILD_PARALLEL_LEVEL=jobs))
     wheels = list(out.glob("leveler-*.whl"))
     assert len(wheels) == 1, list(out.iterdir())
     print(f"\nwheel: {wheels[0].name}: {wheels[0].stat().st_size} bytes")
@@ -130,3 +131,23 @@ def test_installed_pil_plant_finds_its_diag_library(installed):
     code = ("import ctypes; from leveler import paths; "
             "ctypes.CDLL(paths.packaged('_lib', 'libleveler_pil_plant.so')); print('ok')")
     assert run([str(bin_dir / "python"), "-c", code], cwd=outside, env=env).stdout == "ok\n"
+
+
+def test_installed_diagnosis_resolves_a_config_name(installed):
+    """leveler-diagnose --config NAME on the thesis's published figures (the data the
+    package carries): the name resolved in the package's configs, the C plant fitted,
+    diagnosis.json and report.html written."""
+    bin_dir, outside, env = installed
+    data = run([str(bin_dir / "python"), "-c", "import leveler.diagnose, os; print(os.path.dirname(leveler.diagnose.__file__))"],
+               cwd=outside, env=env).stdout.strip()
+    out = outside / "diag"
+    run([str(bin_dir / "leveler-diagnose"), "--config", "thesis-900lb", "--features",
+         os.path.join(data, "data", "thesis-experiment.json"), "--out", str(out), "--fast", "--quiet"], cwd=outside, env=env)
+    d = json.loads((out / "diagnosis.json").read_text())
+    assert d["config"] == "thesis-900lb" and d["version"] == VERSION
+    assert d["ranking"] and all(r["simulations"] > 0 for r in d["ranking"])
+    assert (out / "report.html").stat().st_size > 10000
+    bad = subprocess.run([str(bin_dir / "leveler-diagnose"), "--config", "no-such-rig", "--features",
+                          os.path.join(data, "data", "thesis-experiment.json"), "--out", str(outside / "bad")],
+                         cwd=outside, env=env, capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "thesis-900lb" in bad.stderr, bad.stderr   # the known names are the package's
