@@ -38,22 +38,23 @@ def packaged(*parts):
     return p if os.path.exists(p) else None
 
 
-def in_build(rel, build_dirs=BUILD_DIRS):
-    """The newest ``build/<dir>/rel`` of the checkout, or None (also outside a checkout)."""
+def in_build(rel, build_dirs=BUILD_DIRS, ok=os.path.isfile):
+    """The newest usable ``build/<dir>/rel`` of the checkout, or None (also outside a checkout)."""
     if ROOT is None:
         return None
-    cands = [c for b in build_dirs for c in glob.glob(os.path.join(ROOT, b, rel))]
+    cands = [c for b in build_dirs for c in glob.glob(os.path.join(ROOT, b, rel)) if ok(c)]
     return max(cands, key=os.path.getmtime) if cands else None
 
 
 def compiled(env, packaged_rel, build_rel, hint, build_dirs=BUILD_DIRS, ok=os.path.isfile):
-    """A compiled file: $env, else the installed package's, else the build folders'."""
+    """A compiled file: $env, else the installed package's, else the build folders'.
+    ok: what makes a candidate usable (a file; for a program, an executable one)."""
     path = os.environ.get(env)
     if path:
         if not ok(path):
-            raise NotFound(f"{env}={path}: no such file")
+            raise NotFound(f"{env}={path}: " + ("not an executable" if os.path.isfile(path) else "no such file"))
         return path
-    for path in (packaged(*packaged_rel.split("/")), in_build(build_rel, build_dirs)):
+    for path in (packaged(*packaged_rel.split("/")), in_build(build_rel, build_dirs, ok)):
         if path and ok(path):
             return path
     raise NotFound(f"{os.path.basename(build_rel)} not found: {hint}, set {env}, or pip install the package")
