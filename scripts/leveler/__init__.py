@@ -10,6 +10,7 @@ plot     the report figure (matplotlib, Agg)
 report   command line: python -m leveler.report --log run.csv ...
 cli      the command style every Python program shares (argparse, --version, exit codes)
 monitor  leveler-monitor: a live page of a rig or board over Modbus (docs/monitor.md)
+paths    where the project's files are: inside the installed package, else the checkout
 
 Everything inside is SI with absolute pressures; thesis units (in, psia, lb)
 appear only where results are set beside the thesis.
@@ -20,17 +21,17 @@ import os as _os
 
 def _read_version():
     """The top-level VERSION file of the checkout (the one source; CMake reads
-    it too), else the installed package's metadata."""
-    path = _os.path.join(_os.path.dirname(_os.path.abspath(__file__)), "..", "..", "VERSION")
-    try:
-        with open(path, encoding="utf-8") as fh:
+    it too, and the wheel's metadata is made from it), else the installed
+    package's metadata."""
+    from .paths import ROOT
+    if ROOT is not None:
+        with open(_os.path.join(ROOT, "VERSION"), encoding="utf-8") as fh:
             return fh.readline().strip()
-    except OSError:
-        from importlib import metadata
-        try:
-            return metadata.version("leveler")
-        except metadata.PackageNotFoundError:
-            return "unknown"
+    from importlib import metadata
+    try:
+        return metadata.version("leveler")
+    except metadata.PackageNotFoundError:
+        return "unknown"
 
 
 __version__ = _read_version()

@@ -8,20 +8,20 @@ covers. Errors are the loader's own ``file:line: [section] key = value:
 reason``.
 
 ``leveler-sim`` is found in $LEVELER_SIM (set by leveler-sim itself for the
-report it runs, and by the tests), else in the project's build folders.
+report it runs, and by the tests), else in the installed package (pip install
+.), else in the project's build folders (leveler/paths.py).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-import glob
 import json
 import os
 import subprocess
 from typing import List, Optional
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+from . import paths
 
 
 class ConfigError(ValueError):
@@ -76,19 +76,16 @@ class AnalysisConfig:
         return self.values[section][key]
 
 
+def _executable(path):
+    return os.path.isfile(path) and os.access(path, os.X_OK)
+
+
 def find_sim():
-    env = os.environ.get("LEVELER_SIM")
-    if env:
-        if not os.access(env, os.X_OK):
-            raise ConfigError(f"LEVELER_SIM={env}: not an executable")
-        return env
-    cands = [c for b in ("sim", "bench", "test", "*")
-             for c in glob.glob(os.path.join(ROOT, "build", b, "host_sim", "sim", "leveler-sim"))]
-    cands = [c for c in cands if os.access(c, os.X_OK)]
-    if not cands:
-        raise ConfigError("leveler-sim not found (it reads the config for the analysis): "
-                          "run `make sim` or set LEVELER_SIM")
-    return max(cands, key=os.path.getmtime)
+    try:
+        return paths.compiled("LEVELER_SIM", "_bin/leveler-sim", "host_sim/sim/leveler-sim",
+                              "it reads the config for the analysis: run `make sim`", ok=_executable)
+    except paths.NotFound as e:
+        raise ConfigError(str(e)) from None
 
 
 @functools.lru_cache(maxsize=64)

@@ -2,7 +2,8 @@
 stepped by the one firmware-in-the-loop stepper (host_sim/sim/stepper.h) with
 the emulated image's outputs as its commands hook. The one place the harness
 touches the plant.
-The library is looked up in $LEVELER_PIL_PLANT_LIB, then in the build folders.
+The library is looked up in $LEVELER_PIL_PLANT_LIB, then in the installed leveler
+package (pip install .: leveler/_lib), then in the build folders.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ import ctypes
 import glob
 import os
 from pathlib import Path
+
+from leveler import paths
 
 ROOT = Path(__file__).resolve().parents[3]
 ABI = 3
@@ -27,6 +30,9 @@ def find_library():
         if not Path(env).is_file():
             raise PlantError(f"LEVELER_PIL_PLANT_LIB={env}: no such file")
         return env
+    packaged = paths.packaged("_lib", "libleveler_pil_plant.so")
+    if packaged:
+        return packaged
     for b in ("build/pil", "build/test", "build/bench", "build/sim", "build/*"):
         hits = sorted(glob.glob(str(ROOT / b / "host_sim/pil/libleveler_pil_plant.so")))
         if hits:

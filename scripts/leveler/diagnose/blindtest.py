@@ -49,7 +49,7 @@ import numpy as np
 import leveler
 from leveler import cli as leveler_cli
 from leveler import config as leveler_config
-from leveler import thesis
+from leveler import paths, thesis
 
 from . import cplant
 from . import design
@@ -79,7 +79,7 @@ LOG_KINDS = {
 HEIGHT_SPAN_M = 0.25
 PRESSURE_SPAN_PA = 1.38e6
 
-TRUTH_CATALOGUE = os.path.join(os.path.dirname(__file__), "..", "..", "..", "host_sim", "blindtest", "truth.json")
+TRUTH_CATALOGUE = paths.data("host_sim/blindtest/truth.json", "blindtest/truth.json")
 
 
 def _truth_catalogue():

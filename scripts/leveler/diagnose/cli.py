@@ -20,7 +20,8 @@ from .errors import DiagnoseInputError
 
 def parse_args(argv):
     ap = leveler_cli.parser("leveler-diagnose", __doc__)
-    ap.add_argument("--config", required=True, help="the rig's plant config: a path to an INI file, or a name under host_sim/configs")
+    ap.add_argument("--config", required=True, help="the rig's plant config: a path to an INI file, or a name under host_sim/configs "
+                         "(the installed package carries them)")
     ap.add_argument("--run", action="append", default=[], metavar="CSV", help="calibration run log")
     ap.add_argument("--holdout", action="append", default=[], metavar="CSV",
                     help="held-out run log (never used in fitting)")
@@ -107,7 +108,7 @@ def run(a, say):
 
 def config_name(config):
     """A config's own name ([config] name, else its file name), from a path or a
-    name under host_sim/configs."""
+    name under host_sim/configs (cplant.CONFIG_DIR)."""
     from leveler import config as config_mod
     from .cplant import CONFIG_DIR
     path = config if os.path.exists(config) else os.path.join(CONFIG_DIR, config + ".ini")

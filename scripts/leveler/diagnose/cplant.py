@@ -2,7 +2,8 @@
 
 The shared library `libleveler_diag.so` is built without sanitizers by
 host_sim/diagnose/CMakeLists.txt. It is looked up in $LEVELER_DIAG_LIB, then in
-the project's build folders (build/sim, build/bench, build/test).
+the installed package (pip install .), then in the project's build folders
+(build/sim, build/bench, build/test): leveler/paths.py.
 """
 import ctypes
 import functools
@@ -15,8 +16,10 @@ from . import effects as fx
 from .errors import DiagnoseInputError
 from .model import CLOSED_LOOP, Simulator, Trace
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", ".."))
-CONFIG_DIR = os.path.join(ROOT, "host_sim", "configs")
+from leveler import paths
+
+# the names --config takes: the checkout's host_sim/configs, else the installed package's copy
+CONFIG_DIR = paths.data("host_sim/configs", "configs")
 ABI = 4
 MAX_PARAMS = 8
 SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
@@ -25,19 +28,11 @@ SCENARIO_KEYS = ("base_load_n", "step_load_n", "step_on_s", "step_off_s", "end_s
 
 
 def find_library(env="LEVELER_DIAG_LIB", folder="diagnose", name="libleveler_diag.so", target="leveler_diag"):
-    path = os.environ.get(env)
-    if path:
-        if not os.path.isfile(path):
-            raise DiagnoseInputError(f"{env}={path}: no such file")
-        return path
-    cands = []
-    for b in ("build/sim", "build/bench", "build/test", "build/*"):
-        cands += glob.glob(os.path.join(ROOT, b, "host_sim", folder, name))
-    cands = [c for c in cands if os.path.isfile(c)]
-    if not cands:
-        raise DiagnoseInputError(f"{name} not found: build it with "
-                                 f"`cmake --build build/sim --target {target}` or set {env}")
-    return max(cands, key=os.path.getmtime)
+    try:
+        return paths.compiled(env, f"_lib/{name}", f"host_sim/{folder}/{name}",
+                              f"build it with `cmake --build build/sim --target {target}`")
+    except paths.NotFound as e:
+        raise DiagnoseInputError(str(e)) from None
 
 
 def find_truth_library():

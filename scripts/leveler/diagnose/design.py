@@ -17,7 +17,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from .cplant import ROOT, request_commands, schedule_apply, schedule_columns, tick_grid
+from leveler import paths
+
+from .cplant import request_commands, schedule_apply, schedule_columns, tick_grid
 from .model import CLOSED_LOOP
 from .runs import Run
 
@@ -58,7 +60,7 @@ MODE = "mode"   # the schedule column (register) of the mode
 
 def _mode_values():
     """The mode register's values by name, from the register map's one source."""
-    with open(os.path.join(ROOT, "firmware", "regmap", "registers.json")) as fh:
+    with open(paths.data("firmware/regmap/registers.json", "registers.json")) as fh:
         return next(r for r in json.load(fh)["registers"] if r["name"] == MODE)["enum"]
 
 

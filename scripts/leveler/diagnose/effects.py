@@ -13,12 +13,13 @@ parameters are the two lists one after the other (parameter names are unique
 across the catalogue), and the C plant runs both models (effects.h).
 """
 import json
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
-CATALOGUE = os.path.join(os.path.dirname(__file__), "..", "..", "..", "host_sim", "plant", "effects.json")
+from leveler import paths
+
+CATALOGUE = paths.data("host_sim/plant/effects.json", "effects.json")
 
 
 @dataclass(frozen=True)
