@@ -83,7 +83,8 @@ def test_wheel_holds_the_compiled_parts_and_the_data(wheel):
 
 def test_dependency_pins_are_the_requirements_pins():
     """pyproject.toml's runtime dependencies carry scripts/requirements.txt's pins (one tested set)."""
-    deps = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["dependencies"]
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    deps = project["dependencies"] + [d for extra in project.get("optional-dependencies", {}).values() for d in extra]
     pins = dict(line.split("==") for line in (ROOT / "scripts" / "requirements.txt").read_text().splitlines()
                 if "==" in line and not line.startswith("#"))
     for dep in deps:
