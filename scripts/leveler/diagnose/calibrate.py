@@ -40,6 +40,7 @@ from leveler import config as leveler_config
 from . import fit
 from .cplant import config_path
 from .gap import shrink as shrink_pct
+from .effects import from_unit
 from .uncertainty import Z95, autocorrelation_inflation, jacobian, unit_covariance
 
 PRIOR_PER_DOUBLING = 0.02   # prior residual for a factor 2 (or a range's width) away from the config
@@ -130,6 +131,15 @@ class Space:
         lo, hi = self._t(self.lo), self._t(self.hi)
         x = lo + np.clip(u, 0.0, 1.0) * (hi - lo)
         return np.where(self.is_log, np.exp(x), x)
+
+    def stretched(self, j, uj):
+        """A value pinned at the end of its range where that end is a chosen span, not a
+        physical limit (a factor of the config's value, not n = 1 or 1.4 or Cd = 1): the
+        value is standing in for something else, not mis-set."""
+        n = self.params[j]
+        at_lo, at_hi = uj <= 1e-3, uj >= 1.0 - 1e-3
+        physical_hi = n.absolute is not None or (n.cap is not None and self.hi[j] >= n.cap)
+        return (at_lo and n.absolute is None) or (at_hi and not physical_hi)
 
     def prior(self, u):
         """Weak pull toward the config: PRIOR_PER_DOUBLING per factor 2 (per range for absolute keys)."""
@@ -250,13 +260,17 @@ def fit_calibration(cal, max_nfev=12, progress=None):
     if it pays for itself (worth_adding), then refits the chosen set jointly.
     One parameter at a time finds the value that is wrong; a joint fit of all
     of them from the config trades small compensating errors among the rest.
+    A value that ends pinned at the end of its span is not taken (Space.stretched).
     Returns (unit point, chosen indices)."""
     u = np.array(cal.space.u0, dtype=float)
     chosen = []
     r = cal.data_residual(u)
     while len(chosen) < min(MAX_MOVED, len(u)):
         trials = [(j, fit_subset(cal, u, [j], max_nfev)) for j in range(len(u)) if j not in chosen]
-        scored = [(float(np.sum(cal.data_residual(v) ** 2)), j, v) for j, v in trials]
+        scored = [(float(np.sum(cal.data_residual(v) ** 2)), j, v) for j, v in trials
+                  if not cal.space.stretched(j, v[j])]
+        if not scored:
+            break
         ss, j, v = min(scored, key=lambda x: x[0])
         if not worth_adding(r, ss):
             break
@@ -351,6 +365,7 @@ def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progres
         "ini": ini_text(config_file, space.name, space.params, [p["value"] for p in table], notes)
         if accepted else None,
     }
+    report["handles"] = (cal, hold, u, chosen)     # for joint fits (pipeline.py); not written out
     report["config_file"] = cal.config(u) if accepted else config_file
     report["runs"] = (cal.runs_at(u), hold.runs_at(u)) if accepted else (list(calib), list(holdout))
     for p in table:
@@ -360,3 +375,37 @@ def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progres
                      f"95% {p['interval'][0]:.4g}..{p['interval'][1]:.4g}) {mark}")
     progress(f"      calibration: {report['why']}; {report['simulations']} simulations in {report['seconds']:.1f} s")
     return report
+
+
+JOINT_NFEV = 20
+
+
+def joint_fit(cal, hold, chosen, effect, u_effect):
+    """An effect and the calibration's chosen values fitted together on the calibration
+    runs, from the effect's own fit and the config's values: a real effect keeps its
+    parameters and leaves the values near the config's; an effect standing in for a
+    mis-set value gives way to it. Returns {effect, params, u, calibration_gap, holdout_gap}."""
+    d = len(effect.params)
+    idx = list(chosen)
+
+    def split(x):
+        v = np.array(cal.space.u0, dtype=float)
+        v[idx] = x[d:]
+        return v, from_unit(effect, x[:d])
+
+    def fun(x):
+        v, params = split(x)
+        p = cal.problem(v)
+        r = p.residual_vector(effect.name, params)
+        cal.nsim += p.nsim
+        return np.concatenate([r, cal.space.prior(v)])
+    x0 = np.concatenate([np.asarray(u_effect, dtype=float), np.asarray(cal.space.u0)[idx]])
+    res = least_squares(fun, x0, bounds=(np.zeros(len(x0)), np.ones(len(x0))), diff_step=0.02,
+                        x_scale=np.full(len(x0), 0.3), max_nfev=JOINT_NFEV, method="trf")
+    v, params = split(res.x)
+    hp = hold.problem(v)
+    out = {"effect": effect.name, "params": params, "u": v,
+           "calibration_gap": fit.cost_to_gap(res.fun[:-len(v)], len(cal.runs)),
+           "holdout_gap": hp.gap(effect.name, params)}
+    hold.nsim += hp.nsim
+    return out

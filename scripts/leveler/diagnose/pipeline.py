@@ -353,6 +353,58 @@ def _effect_first(calibration, best, gate, progress):
     return True
 
 
+def _settle_calibration(sim, calibration, handles, top, u_top, named, holdout, mode):
+    """On the calibration path: the config the verdict stands on (the leading joint
+    fit's when its effect is named, else the calibration's) and what moved in it.
+    Returns the held-out problem on that config."""
+    cal, hold, u, chosen = handles
+    v = u_top if named else u
+    if named:
+        vals = cal.space.values(v)
+        moved = [p["name"] for j, p in enumerate(calibration["parameters"]) if j in chosen and
+                 abs(vals[j] / p["config"] - 1.0) >= calibrate.MATERIAL_REL]
+        calibration.update(with_effect={"effect": top["effect"],
+                                        "values": {p["name"]: float(vals[j])
+                                                   for j, p in enumerate(calibration["parameters"])}},
+                           moved=moved, kept=bool(moved))
+        for p in calibration["parameters"]:
+            p["moved"] = p["name"] in moved
+        calibration["ini"] = calibrate.ini_text(cal.space.config_file, cal.space.name, cal.space.params, vals,
+                                                [f"fitted with {top['effect']}" for _ in cal.space.params]) \
+            if moved else None
+    return fit.Problem(sim, cal.config(v), holdout, mode, fit.start_shifts(holdout))
+
+
+JOINT_CANDIDATES = 2   # the effects (best alone on the config as given) fitted with the calibration
+
+
+def _joint_step(handles, as_given, fits, gaps, progress):
+    """The calibration path: the best effects alone, refitted together with the
+    calibration's chosen values (calibrate.joint_fit), scored against the calibrated
+    model's held-out gap; the other candidates keep their scores alone. Returns (the
+    ranking over the calibrated model, the config of the leading joint fit or of the
+    calibration)."""
+    cal, hold, u, chosen = handles
+    ranking, configs = [], {}
+    for r in as_given:
+        e = dict(r, shrink_pct=shrink(gaps[1], r["holdout_gap"]), joint=False)
+        ranking.append(e)
+    for r in sorted(as_given, key=lambda x: x["holdout_gap"])[:JOINT_CANDIDATES]:
+        j = calibrate.joint_fit(cal, hold, chosen, fx.get(r["effect"]), fits[r["effect"]]["unit"])
+        e = next(x for x in ranking if x["effect"] == r["effect"])
+        configs[r["effect"]] = j["u"]
+        e.update(holdout_gap=j["holdout_gap"], calibration_gap=j["calibration_gap"], joint=True,
+                 shrink_pct=shrink(gaps[1], j["holdout_gap"]),
+                 params={k: dict(v, value=j["params"][k]) for k, v in r["params"].items()})
+        progress(f"      {r['effect']:<15} with the calibration: held-out gap {j['holdout_gap']:.3f} "
+                 f"(calibrated {gaps[1]:.3f}, {e['shrink_pct']:+.1f}%)")
+    ranking.sort(key=lambda x: -x["shrink_pct"])
+    for i, r in enumerate(ranking, 1):
+        r["rank"] = i
+    top = ranking[0]["effect"]
+    return ranking, configs.get(top, u)
+
+
 def _rank_fits(candidates, fits, nominal_cal_gap, nominal_hold_gap):
     ranking = []
     for name in candidates:
@@ -425,16 +477,18 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
     if calibration:     # the candidates on the config as given, beside the calibration's figures
         calibration["effects_as_given"] = [{k: r[k] for k in ("effect", "holdout_gap", "shrink_pct")}
                                            for r in ranking]
+    handles = calibration.pop("handles") if calibration else None
+    calibrated_path = False
     if calibration and calibration["kept"] and not _effect_first(calibration, ranking[0], gate, progress):
-        # the effects must beat what the calibrated model leaves
-        work, calib, holdout = cal_work, cal_runs, cal_hold
+        # the calibration stands: an effect must explain what it leaves, fitted with it
+        calibrated_path = True
+        calib, holdout = cal_runs, cal_hold
+        gaps = (calibration["calibration_gap"]["after"], calibration["holdout_gap"]["after"])
+        ranking, u_top = _joint_step(handles, ranking, fits, gaps, progress)
+        work = handles[0].config(u_top)
         cal_problem = fit.Problem(sim, work, calib, mode)
         hold_problem = fit.Problem(sim, work, holdout, mode, fit.start_shifts(holdout))
-        gaps = (cal_problem.gap(None, {}), hold_problem.gap(None, {}))
-        floor, threshold = _threshold(hold_problem, gaps[1], features)
-        progress("      the effects again, on top of the calibrated config")
-        ranking, fits = _effects_step(spec, work, calib, holdout, mode, candidates, jobs, fit_opts, hold_problem,
-                                      gaps, progress)
+        floor, threshold = _threshold(hold_problem, hold_problem.gap(None, {}), features)
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
     progress(f"      sensitivity floor of the held-out {'figures' if features else 'runs'}: {floor:.1f}% "
@@ -443,13 +497,15 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
     if best["shrink_pct"] >= threshold and not named_single:
         progress(f"      {best['effect']} lowers the held-out gap by {gaps[1] - best['holdout_gap']:.3f}, less than "
                  f"half the gap of the logs' own noise ({gate:.3f}): no evidence of an effect")
-    pair_list, kept, second = ([], None, None) if features else pair_step(
+    pair_list, kept, second = ([], None, None) if features or calibrated_path else pair_step(
         spec, work, calib, holdout, mode, jobs, fit_opts, ranking, fits, threshold, gaps, progress, gate)
     named = named_single or kept is not None
     noise = 0.0 if features else fit.noise_gap(holdout)
     finding = None if features else _unexplained_step(hold_problem, holdout, ranking, kept, gaps[1], noise,
                                                       threshold, progress)
     named = named and finding is None
+    if calibrated_path:
+        hold_problem = _settle_calibration(sim, calibration, handles, ranking[0], u_top, named, holdout, mode)
     winner = best["effect"] if named else ("not explained" if finding else "none")
     effects = kept["effects"] if kept and named else ([winner] if named else [])
     look = lookalike_step(cal_problem, ranking, threshold, named and named_single and not features, progress,
