@@ -329,7 +329,9 @@ def _calibration_names(cal):
     if not cal:
         return []
     if isinstance(cal, dict) and isinstance(cal.get("moved"), list):
-        return [str(x.get("name", x) if isinstance(x, dict) else x) for x in cal["moved"]]
+        # with a rival effect the calibration's values are its look-alike: they moved
+        moved = cal["moved"] + list((cal.get("rival") or {}).get("moved", []))
+        return [str(x.get("name", x) if isinstance(x, dict) else x) for x in moved]
     items = cal.get("parameters", cal) if isinstance(cal, dict) else cal
     if isinstance(items, dict):
         items = [dict(v, name=k) if isinstance(v, dict) else {"name": k, "value": v} for k, v in items.items()]
@@ -389,9 +391,11 @@ def run_form_case(sim, top, seed, spec, index, extra, force=(None, None)):
     if spec["family"] == "misset":
         r["param"] = spec["param"]
         r["param_named"] = param_named(cal, spec["param"])
-    if r["lookalikes"] and spec["truth"] in fx.NAMES:
+    # a mis-set rig's truth among the look-alikes is the calibration
+    truth_in = spec["truth"] if spec["truth"] in fx.NAMES else ("calibration" if spec["family"] == "misset" else None)
+    if r["lookalikes"] and truth_in:
         r["after_experiment"] = (run_experiment(sim, folder, d, "none", params, system, kind, seed, extra, spec)
-                                 if spec["truth"] in r["lookalikes"] else "truth not among them")
+                                 if truth_in in r["lookalikes"] else "truth not among them")
         r["verdict"] = r["after_experiment"]
     r["right"] = case_right(r)
     return r

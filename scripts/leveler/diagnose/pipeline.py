@@ -317,39 +317,39 @@ def _calibration_step(sim, config, calib, holdout, mode, folder, threshold, prog
     return rep, rep.pop("config_file"), calib, holdout
 
 
-# The best effect, fitted on the config as given, takes the gap from the calibration
-# only when it leaves a held-out gap smaller by this share of the calibrated one (and
-# by the noise gate): calibrate before blaming. Within this share either way the two
-# explain the held-out runs alike, and the verdict's confidence says so.
-EFFECT_FIRST_PCT = 10.0
+# The calibration stands against the best effect (fitted alone on the config as given)
+# only when it leaves a held-out gap smaller by this share of the effect's (and by the
+# noise gate). Within this share the two explain the held-out runs alike: the effect is
+# named, the calibration recorded as its look-alike (`rival`), and the verdict's
+# confidence says so with the experiment that would tell them apart.
+CALIBRATION_FIRST_PCT = 10.0
 
 
 def _effect_first(calibration, best, gate, progress):
     """Whether the gap is the leading effect's rather than mis-set nominal values.
     Both were fitted on the calibration runs (the effect on the config as given) and
-    are judged on held-out runs neither saw. Returns True when the effect is clearly
-    better (the calibration, which bends nominal values to mimic it, is then not
-    kept); otherwise the calibration stands and an effect must explain what it
-    leaves. Alike within EFFECT_FIRST_PCT: the effect is recorded as the
-    calibration's look-alike (`rival`)."""
+    are judged on held-out runs neither saw. Returns False when the calibration is
+    clearly better: it stands, and an effect must explain what it leaves (_joint_step).
+    Otherwise True: the calibration, which bends nominal values to mimic the effect,
+    is not kept (recorded as the effect's `rival` when the two are alike)."""
     g_cal, g_fx = calibration["holdout_gap"]["after"], best["holdout_gap"]
-    share = EFFECT_FIRST_PCT / 100.0
-    if not (g_fx <= (1.0 - share) * g_cal and g_cal - g_fx >= gate):
-        if g_fx <= (1.0 + share) * g_cal:
-            calibration["rival"] = {"effect": best["effect"], "moved": list(calibration["moved"]),
-                                    "effect_gap": g_fx, "calibration_gap": g_cal}
-            progress(f"      {best['effect']} alone leaves {g_fx:.3f}, calibration {g_cal:.3f}: alike; "
-                     f"calibrated before blaming")
+    share = CALIBRATION_FIRST_PCT / 100.0
+    if g_cal <= (1.0 - share) * g_fx and g_fx - g_cal >= gate:
         return False
+    alike = g_fx >= (1.0 - share) * g_cal and calibration["moved"]
+    if alike:
+        calibration["rival"] = {"effect": best["effect"], "moved": list(calibration["moved"]),
+                                "effect_gap": g_fx, "calibration_gap": g_cal}
     calibration.update(kept=False, moved=[], superseded_by=best["effect"],
                        why=calibration["why"].replace(", kept", "") +
-                       f"; {best['effect']} alone leaves {g_fx:.3f}: the effect explains the held-out runs "
-                       f"better than calibration, which is not kept")
+                       f"; {best['effect']} alone leaves {g_fx:.3f}: "
+                       + ("alike; the effect is named, the calibration is its look-alike" if alike else
+                          "the effect explains the held-out runs better; calibration not kept"))
     for p in calibration["parameters"]:
         p["moved"] = False
     calibration["ini"] = None
     progress(f"      {best['effect']} leaves a held-out gap of {g_fx:.3f}, calibration {g_cal:.3f}: "
-             f"the effect explains it better; calibration not kept")
+             + ("alike" if alike else "the effect explains it better") + "; calibration not kept")
     return True
 
 
@@ -514,7 +514,7 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
     sure = confidence.assess(effects, ranking, gaps[1], noise, look["lookalikes"] and look["lookalikes"]["group"],
                              look["experiment"], finding, rival)
     if not features and rival and not look["experiment"] and not design_pair:
-        look = dict(look, experiment=_rival_experiment(sim, config, calib, work, as_given, rival, progress))
+        look = dict(look, experiment=_rival_experiment(sim, config, calib, cal_work, as_given, rival, progress))
         sure["experiment"] = look["experiment"]["ranked"][0]["schedule"]
     designable = [e for e in sure["set"] if e in fx.NAMES]     # effects, not "calibration: ..."
     if not features and effects and len(designable) >= 2 and not look["experiment"]:
