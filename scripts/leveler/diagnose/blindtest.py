@@ -671,6 +671,8 @@ def main_families(a):
     if a.json:
         with open(a.json, "w") as fh:
             json.dump({"results": results, "families": out}, fh, indent=2, default=str)
+    if a.check and any(100.0 * v["right"] / max(v["cases"], 1) < a.min_hit for v in out.values()):
+        rc = 1      # --check: every family at --min-hit
     return rc
 
 
