@@ -47,6 +47,8 @@ def test_calibration_finds_the_misset_value(cplant, tmp_path, change, want):
     p = next(x for x in rep["parameters"] if x["name"] == want)
     sec, key = spec["keys"][0]
     assert p["value"] == pytest.approx(truth[sec][key], rel=0.03)
+    # and the interval it states holds the rig's value (an interval that is true)
+    assert p["interval"][0] <= truth[sec][key] <= p["interval"][1]
     # as good on the held-out run as the rig's own config (the true model)
     true_gap = fit.Problem(cplant, rig, hold, "auto", fit.start_shifts(hold)).gap(None, {})
     assert rep["holdout_gap"]["after"] <= 1.25 * true_gap
