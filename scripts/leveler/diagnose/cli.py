@@ -189,7 +189,10 @@ def diagnose_into(a, say, tmp, out):
             f"{m['logged']} (not {m['config']})" for m in result["config_mismatch"]))
     cal = result.get("calibration") or {}
     moved = [p for p in cal.get("parameters", []) if p["moved"]]
-    say("calibrated: " + (", ".join(f"{p['name']} {p['change_pct']:+.1f}%" for p in moved) or "no parameter moved"))
+    rival = cal.get("rival")
+    say("calibrated: " + (", ".join(f"{p['name']} {p['change_pct']:+.1f}%" for p in moved) or
+                          (f"not kept; {', '.join(rival['moved'])} would explain the held-out runs as well as "
+                           f"{rival['effect']} (experiment.csv tells them apart)" if rival else "no parameter moved")))
     say(f"effect: {' + '.join(result['effects']) or 'none'}; held-out shrink {result['shrink_pct']:.1f}%; "
         f"{result['seconds']:.1f} s; wrote {out}/diagnosis.json and report.html")
     return 0

@@ -80,8 +80,7 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
         level = "unsure"
         cset = list(dict.fromkeys(list(effects) + ["calibration: " + ", ".join(rival["moved"])] + [rival["effect"]]))
         why = (f"mis-set {', '.join(rival['moved'])} and {rival['effect']} explain the held-out runs about as "
-               f"well (held-out gaps {rival['calibration_gap']:.3f} and {rival['effect_gap']:.3f}); "
-               f"calibrated before blaming")
+               f"well (held-out gaps {rival['calibration_gap']:.3f} and {rival['effect_gap']:.3f})")
     elif not effects:
         quiet = noise > 0 and cal_gap <= NONE_QUIET * noise
         level = "sure" if quiet else "likely"

@@ -449,6 +449,88 @@ def _effects_step(spec, config, calib, holdout, mode, candidates, jobs, fit_opts
     return ranking, fits
 
 
+def _confidence_step(sim, config, calib, cal_problem, cal_work, calibration, as_given, ranking, effects, cal_gap,
+                     noise, look, finding, features, design_pair, progress):
+    """How sure the verdict is (confidence.py), and the experiment that would separate
+    what it cannot: the calibration from its rival effect, or two effects. Returns
+    (look-alike step, with its experiment; confidence)."""
+    rival = (calibration or {}).get("rival")
+    sure = confidence.assess(effects, ranking, cal_gap, noise, look["lookalikes"] and look["lookalikes"]["group"],
+                             look["experiment"], finding, rival)
+    if not features and rival and not look["experiment"] and not design_pair:
+        look = dict(look, experiment=_rival_experiment(sim, config, calib, cal_work, as_given, rival, progress))
+        sure["experiment"] = look["experiment"]["ranked"][0]["schedule"]
+    designable = [e for e in sure["set"] if e in fx.NAMES]     # effects, not "calibration: ..."
+    if not features and effects and len(designable) >= 2 and not look["experiment"]:
+        look = dict(look, experiment=_experiment(cal_problem, ranking, designable[:2], progress))
+        sure["experiment"] = look["experiment"]["ranked"][0]["schedule"] if look["experiment"] else None
+    progress(f"      confidence: {sure['level']}"
+             + (f" (right {100 * sure['probability']['p']:.0f}% of the time on truths written apart)"
+                if sure["probability"] else "") + f": {sure['why']}"
+             + (f"; {'cannot separate' if effects or rival else 'nearest'}: {', '.join(sure['set'])}"
+                if sure["level"] != "sure" and sure["set"] else ""))
+    return look, sure
+
+
+def _before_after_step(hold_problem, holdout, user_nominal_hold, top, features):
+    """[4] the held-out runs under the final model (top: the named entry, or None) against
+    the config as given. Returns (augmented traces, the before/after tables)."""
+    if top:
+        aug_hold = [hold_problem.best_start(r, top["effect"], _params_of(top))[0] for r in holdout]
+    else:
+        aug_hold = [hold_problem.best_start(r, None, {})[0] for r in holdout]
+    if features:
+        return aug_hold, feature_before_after(hold_problem, holdout, user_nominal_hold, aug_hold)
+    return aug_hold, before_after(hold_problem, holdout, user_nominal_hold, aug_hold)
+
+
+def _result(config, mode, calib, holdout, threshold, floor, where, calibration, sure, finding, noise, ranking,
+            winner, effects, pairs_, look, ba, gaps, named, t0):
+    """diagnosis.json's content."""
+    best = ranking[0]
+    runner = ranking[1] if len(ranking) > 1 else None
+    pair_list, kept, second = pairs_
+    return {
+        "config": config,
+        "mode": mode,
+        "calibration_runs": [r.name for r in calib],
+        "holdout_runs": [r.name for r in holdout],
+        "threshold_pct": threshold,
+        "sensitivity_floor_pct": floor,
+        "where": where,
+        # the nominal parameters fitted before any effect (calibrate.py); None: not done
+        "calibration": calibration,
+        # how sure, and what no candidate explains (confidence.py)
+        "confidence": sure,
+        "unexplained": finding,
+        "noise_gap": noise,
+        "ranking": ranking,
+        "effect": winner,
+        # the ranked combination: the leader, and a second effect when a pair is kept (pairs.py)
+        "effects": effects,
+        "pairs": pair_list,
+        # second place of the ranked combination: what best explains what the leader leaves
+        # (pairs.py; named only when kept), else, without pairs, the runner-up single
+        "second": second or ({"effect": runner["effect"], "pair": None, "kept": False} if runner else None),
+        "ranked_combination": [best["effect"]] + ([(second or runner)["effect"]] if (second or runner) else []),
+        "margin_pct": (best["shrink_pct"] - runner["shrink_pct"]) if runner else None,
+        "runner_up": runner["effect"] if runner else None,
+        # look-alikes: the candidates these logs cannot tell apart (the winner first), with evidence
+        "cannot_tell_apart": (look["lookalikes"] or {}).get("group", []),
+        "separability": (look["lookalikes"] or {}).get("tests", []),
+        "experiment": look["experiment"],
+        "gap_before": ba["overall"]["before"],
+        "gap_after": ba["overall"]["after"],
+        # the config as given -> the calibrated config with the named effect(s)
+        "shrink_pct": shrink(ba["overall"]["before"]["normalised"], ba["overall"]["after"]["normalised"]),
+        # the named effect(s) alone, on top of the calibrated config
+        "effect_shrink_pct": (shrink(gaps[1], (kept or best)["holdout_gap"]) if named else 0.0),
+        "per_phase": ba["per_phase"],
+        "events": ba["events"],
+        "seconds": time.perf_counter() - t0,
+    }
+
+
 def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jobs=None,
              progress=print, fit_opts=None, design_pair=None):
     """Returns (result dict for diagnosis.json, traces for the report)."""
@@ -510,72 +592,14 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
     effects = kept["effects"] if kept and named else ([winner] if named else [])
     look = lookalike_step(cal_problem, ranking, threshold, named and named_single and not features, progress,
                           design_pair)
-    rival = (calibration or {}).get("rival")
-    sure = confidence.assess(effects, ranking, gaps[1], noise, look["lookalikes"] and look["lookalikes"]["group"],
-                             look["experiment"], finding, rival)
-    if not features and rival and not look["experiment"] and not design_pair:
-        look = dict(look, experiment=_rival_experiment(sim, config, calib, cal_work, as_given, rival, progress))
-        sure["experiment"] = look["experiment"]["ranked"][0]["schedule"]
-    designable = [e for e in sure["set"] if e in fx.NAMES]     # effects, not "calibration: ..."
-    if not features and effects and len(designable) >= 2 and not look["experiment"]:
-        look = dict(look, experiment=_experiment(cal_problem, ranking, designable[:2], progress))
-        sure["experiment"] = look["experiment"]["ranked"][0]["schedule"] if look["experiment"] else None
-    progress(f"      confidence: {sure['level']}"
-             + (f" (right {100 * sure['probability']['p']:.0f}% of the time on truths written apart)"
-                if sure["probability"] else "") + f": {sure['why']}"
-             + (f"; {'cannot separate' if effects or rival else 'nearest'}: {', '.join(sure['set'])}"
-                if sure["level"] != "sure" and sure["set"] else ""))
-
+    look, sure = _confidence_step(sim, config, calib, cal_problem, cal_work, calibration, as_given, ranking,
+                                  effects, gaps[1], noise, look, finding, features, design_pair, progress)
     progress(f"[4/4] before/after on held-out runs (the config as given against "
              f"{'the calibrated config' if calibration and calibration['kept'] else 'the config'}"
              f"{' + ' + fx.combine(effects) if named else ', no effect'})")
-    if named:
-        top = kept or best
-        aug_hold = [hold_problem.best_start(r, top["effect"], _params_of(top))[0] for r in holdout]
-    else:
-        aug_hold = [hold_problem.best_start(r, None, {})[0] for r in holdout]
-    if features:
-        ba = feature_before_after(hold_problem, holdout, user_nominal_hold, aug_hold)
-    else:
-        ba = before_after(hold_problem, holdout, user_nominal_hold, aug_hold)
-    result = {
-        "config": config,
-        "mode": mode,
-        "calibration_runs": [r.name for r in calib],
-        "holdout_runs": [r.name for r in holdout],
-        "threshold_pct": threshold,
-        "sensitivity_floor_pct": floor,
-        "where": where,
-        # the nominal parameters fitted before any effect (calibrate.py); None: not done
-        "calibration": calibration,
-        # how sure, and what no candidate explains (confidence.py)
-        "confidence": sure,
-        "unexplained": finding,
-        "noise_gap": noise,
-        "ranking": ranking,
-        "effect": winner,
-        # the ranked combination: the leader, and a second effect when a pair is kept (pairs.py)
-        "effects": effects,
-        "pairs": pair_list,
-        # second place of the ranked combination: what best explains what the leader leaves
-        # (pairs.py; named only when kept), else, without pairs, the runner-up single
-        "second": second or ({"effect": runner["effect"], "pair": None, "kept": False} if runner else None),
-        "ranked_combination": [best["effect"]] + ([(second or runner)["effect"]] if (second or runner) else []),
-        "margin_pct": (best["shrink_pct"] - runner["shrink_pct"]) if runner else None,
-        "runner_up": runner["effect"] if runner else None,
-        # look-alikes: the candidates these logs cannot tell apart (the winner first), with evidence
-        "cannot_tell_apart": (look["lookalikes"] or {}).get("group", []),
-        "separability": (look["lookalikes"] or {}).get("tests", []),
-        "experiment": look["experiment"],
-        "gap_before": ba["overall"]["before"],
-        "gap_after": ba["overall"]["after"],
-        # the config as given -> the calibrated config with the named effect(s)
-        "shrink_pct": shrink(ba["overall"]["before"]["normalised"], ba["overall"]["after"]["normalised"]),
-        # the named effect(s) alone, on top of the calibrated config
-        "effect_shrink_pct": (shrink(gaps[1], (kept or best)["holdout_gap"]) if named else 0.0),
-        "per_phase": ba["per_phase"],
-        "events": ba["events"],
-        "seconds": time.perf_counter() - t0,
-    }
+    aug_hold, ba = _before_after_step(hold_problem, holdout, user_nominal_hold, (kept or best) if named else None,
+                                      features)
+    result = _result(config, mode, calib, holdout, threshold, floor, where, calibration, sure, finding, noise,
+                     ranking, winner, effects, (pair_list, kept, second), look, ba, gaps, named, t0)
     traces = {"holdout": holdout, "nominal": user_nominal_hold, "augmented": aug_hold}
     return result, traces
