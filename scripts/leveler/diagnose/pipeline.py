@@ -569,8 +569,9 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
         ranking, u_top = _joint_step(handles, ranking, fits, gaps, progress)
         work = handles[0].config(u_top)
         cal_problem = fit.Problem(sim, work, calib, mode)
-        hold_problem = fit.Problem(sim, work, holdout, mode, fit.start_shifts(holdout))
-        floor, threshold = _threshold(hold_problem, hold_problem.gap(None, {}), features)
+        # the threshold and what is left unexplained: against the calibrated model itself
+        hold_problem = fit.Problem(sim, handles[0].config(handles[2]), holdout, mode, fit.start_shifts(holdout))
+        floor, threshold = _threshold(hold_problem, gaps[1], features)
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
     progress(f"      sensitivity floor of the held-out {'figures' if features else 'runs'}: {floor:.1f}% "
