@@ -192,7 +192,9 @@ def diagnose_into(a, say, tmp, out):
     rival = cal.get("rival")
     say("calibrated: " + (", ".join(f"{p['name']} {p['change_pct']:+.1f}%" for p in moved) or
                           (f"not kept; {', '.join(rival['moved'])} would explain the held-out runs as well as "
-                           f"{rival['effect']} (experiment.csv tells them apart)" if rival else "no parameter moved")))
+                           f"{rival['effect']}" + (" (experiment.csv tells them apart)" if "calibration" in
+                                                   (result.get("experiment") or {}).get("between", []) else "")
+                           if rival else "no parameter moved")))
     say(f"effect: {' + '.join(result['effects']) or 'none'}; held-out shrink {result['shrink_pct']:.1f}%; "
         f"{result['seconds']:.1f} s; wrote {out}/diagnosis.json and report.html")
     return 0

@@ -190,12 +190,7 @@ def lookalike_step(problem, ranking, threshold, named, progress, design_pair=Non
                                                      else "told apart"))
     pair = design_pair or ((out["lookalikes"] or {}).get("group") or [])[:2]
     if len(pair) == 2:
-        by = {r["effect"]: r for r in ranking}
-        a, b = (by[pair[0]], by[pair[1]])
-        out["experiment"] = design.propose(problem, (a["effect"], _params_of(a)), (b["effect"], _params_of(b)))
-        best = out["experiment"]["ranked"][0]
-        progress(f"      proposed experiment to tell {a['effect']} from {b['effect']}: {best['schedule']} "
-                 f"(predicted difference {best['separation_noise_units']:.1f} x sensor noise)")
+        out["experiment"] = _experiment(problem, ranking, pair, progress)
     return out
 
 
@@ -280,7 +275,9 @@ def _experiment(problem, ranking, pair, progress):
     by = {r["effect"]: r for r in ranking}
     a, b = by[pair[0]], by[pair[1]]
     exp = design.propose(problem, (a["effect"], _params_of(a)), (b["effect"], _params_of(b)))
-    progress(f"      proposed experiment to tell {a['effect']} from {b['effect']}: {exp['ranked'][0]['schedule']}")
+    best = exp["ranked"][0]
+    progress(f"      proposed experiment to tell {a['effect']} from {b['effect']}: {best['schedule']} "
+             f"(predicted difference {best['separation_noise_units']:.1f} x sensor noise)")
     return exp
 
 
@@ -555,7 +552,8 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
     ranking, fits = _effects_step(spec, config, calib, holdout, mode, candidates, jobs, fit_opts, user_hold, gaps,
                                   progress)
     as_given = ranking
-    gate = 0.0 if features else fit.NOISE_GAIN * fit.noise_gap(holdout)
+    noise = 0.0 if features else fit.noise_gap(holdout)     # the logs' own, the same before and after
+    gate = fit.NOISE_GAIN * noise
     if calibration:     # the candidates on the config as given, beside the calibration's figures
         calibration["effects_as_given"] = [{k: r[k] for k in ("effect", "holdout_gap", "shrink_pct")}
                                            for r in ranking]
@@ -583,7 +581,6 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
     pair_list, kept, second = ([], None, None) if features or calibrated_path else pair_step(
         spec, work, calib, holdout, mode, jobs, fit_opts, ranking, fits, threshold, gaps, progress, gate)
     named = named_single or kept is not None
-    noise = 0.0 if features else fit.noise_gap(holdout)
     finding = None if features else _unexplained_step(hold_problem, holdout, ranking, kept, gaps[1], noise,
                                                       threshold, progress)
     named = named and finding is None
