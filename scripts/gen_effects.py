@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 """Writes the C table of an effect catalogue (host_sim/plant/effects.json, the
 blind test's host_sim/blindtest/truth.json): one plant_fx_model per effect
-with its name, id, parameter count and accepted ranges, tied to the model's
-functions by name (<ops_prefix><name>_ops). Python loads the same JSON.
+with its name, id, parameter count, parameter names, accepted ranges and
+nominal values (NaN where a catalogue has none), tied to the model's functions
+by name (<ops_prefix><name>_ops). Python loads the same JSON; the config loader
+reads [effect.NAME] sections by these names (host_sim/plant/plant_config_effects.c).
 
   gen_effects.py CATALOGUE.json OUT.c --table NAME --ops-prefix PREFIX
 
@@ -30,13 +32,18 @@ def table(doc, name, ops_prefix, source):
             lo, hi = p["range"]
             if not lo <= hi:
                 raise ValueError(f"{source}: {e['name']}.{p['name']}: range must rise")
+            if not p["name"].isidentifier():
+                raise ValueError(f"{source}: {e['name']}.{p['name']}: parameter names are identifiers")
         lines.append(f"extern const plant_fx_ops {ops_prefix}{e['name']}_ops;")
     lines += ["", f"const plant_fx_model {name}[] = {{"]
     for e in effects:
         lo = ", ".join(repr(float(p["range"][0])) for p in e["params"])
         hi = ", ".join(repr(float(p["range"][1])) for p in e["params"])
+        names = ", ".join(f'"{p["name"]}"' for p in e["params"])
+        nominal = ", ".join(repr(float(p["nominal"])) if "nominal" in p else '__builtin_nan("")'
+                            for p in e["params"])
         lines.append(f'    {{"{e["name"]}", {e["id"]}, {len(e["params"])}, {{{lo}}}, {{{hi}}}, '
-                     f'&{ops_prefix}{e["name"]}_ops}},')
+                     f'&{ops_prefix}{e["name"]}_ops, {{{names}}}, {{{nominal}}}}},')
     lines += ["};", f"const int {name}_count = {len(effects)};", ""]
     return "\n".join(lines)
 

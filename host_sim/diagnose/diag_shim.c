@@ -22,7 +22,7 @@
 #include "simloop.h"
 
 /* Version of this ABI; cplant.py refuses a library with another. */
-int diag_abi_version(void) { return 4; }
+int diag_abi_version(void) { return 5; }
 
 /* The simulator's tick, s (SIM_TICK_S: the firmware's LEVELER_TICK_MS). */
 double diag_tick_s(void) { return SIM_TICK_S; }
@@ -32,6 +32,20 @@ int diag_config_check(const char *path, char *err, int err_len)
 {
     static plant_config cfg;
     return plant_config_load(path, &cfg, err, (size_t)err_len);
+}
+
+/* The config's own effects ([effect.NAME] sections): ids[PLANT_FX_MAX_MODELS]
+ * (0 = none) and params (PLANT_FX_MAX_PARAMS per id, SI). 0, or -1 with err. */
+int diag_config_effects(const char *path, int32_t *ids, double *params, char *err, int err_len)
+{
+    static plant_config cfg;
+    if (plant_config_load(path, &cfg, err, (size_t)err_len) != 0)
+        return -1;
+    for (int s = 0; s < PLANT_FX_MAX_MODELS; s++) {
+        ids[s] = cfg.effect_id[s];
+        memcpy(params + s * PLANT_FX_MAX_PARAMS, cfg.effect_params[s], sizeof cfg.effect_params[s]);
+    }
+    return 0;
 }
 
 /* Motor speed in balance at pipe pressure p1_pa with the compressor on a
@@ -44,12 +58,7 @@ double diag_motor_speed(const char *path, double p1_pa, double duty, char *err, 
     return plant_motor_steady_speed(&cfg.plant, p1_pa, duty);
 }
 
-/* Hooks: the plant with one effect, replayed commands, the run's own loads. */
-static void fx_set_inputs(void *f, const plant_inputs *in) { plant_fx_set_inputs(f, in); }
-static void fx_advance(void *f, double dt_s, int substeps) { plant_fx_advance(f, dt_s, substeps); }
-static void fx_sensed(const void *f, double out[4]) { plant_fx_sensed(f, out); }
-static const sim_plant_ops fx_plant = {fx_set_inputs, fx_advance, fx_sensed};
-
+/* Hooks: replayed commands, the run's own loads (the plant: sim_fx_plant). */
 typedef struct {
     const int32_t *commands;
     const double *p1_track;
@@ -75,13 +84,17 @@ static double logged_load(sim_stepper *s, void *user, double t_s)
     return ((const double *)user)[s->k];
 }
 
-/* The plant's initial state: the config's, or a given one at rest (init). */
-static plant_params initial_params(const plant_config *cfg, const double *init)
+/* The plant's initial state: the config's, or a given one at rest (init);
+ * the spring then holds the volume the config implies at the given height
+ * under the first load (the config's volume is at its own [initial] height). */
+static plant_params initial_params(const plant_config *cfg, const double *init, double load0_n)
 {
     plant_params p = cfg->plant;
     if (init) {
-        if (isfinite(init[0]))
+        if (isfinite(init[0])) {
+            p.spring_volume0_m3 = plant_spring_volume_at(&cfg->plant, load0_n, init[0]);
             p.init_height_m = init[0];
+        }
         if (isfinite(init[1]))
             p.init_p_spring_pa = init[1];
         if (isfinite(init[2]))
@@ -304,12 +317,15 @@ int diag_run(const plant_fx_model *table, int table_count, const char *config_pa
     bool closed = commands == NULL;
     if (check_time_base(n, t_s, closed, err, err_len) != 0)
         return -1;
-    plant_params p = initial_params(&cfg, init);
-    int rc = plant_fx_init_models(&f, &p, PLANT_FX_MAX_MODELS, models, fx_params);
+    plant_params p = initial_params(&cfg, init, load_n[0]);
+    int rc = sim_plant_open(&f, &cfg, &p, PLANT_FX_MAX_MODELS, models, fx_params);
     if (rc != 0) {
         if (rc == PLANT_FX_PAIR_REFUSED)
-            snprintf(err, (size_t)err_len, "effects %s and %s: cannot run together (one effect, or a shared state)",
-                     models[0]->name, models[1]->name);
+            snprintf(err, (size_t)err_len,
+                     "effects %s%s%s and the config's: cannot run together (one effect twice, more than %d, "
+                     "or a shared state)",
+                     models[0] ? models[0]->name : "", models[0] && models[1] ? "/" : "",
+                     models[1] ? models[1]->name : "", PLANT_FX_MAX_MODELS);
         else
             snprintf(err, (size_t)err_len, "effect %s%s%s: a parameter is outside its range",
                      models[0] ? models[0]->name : "", models[0] && models[1] ? "/" : "",
@@ -329,7 +345,7 @@ int diag_run(const plant_fx_model *table, int table_count, const char *config_pa
     plant_rng_seed(&rng, cfg.sensors.noise_seed);
     replay_ctx replay = {commands, p1_track, &f};
     sim_schedule_writer writer = take_schedule_writes();
-    sim_stepper st = {.cfg = &cfg, .plant = &f, .ops = &fx_plant,
+    sim_stepper st = {.cfg = &cfg, .plant = &f, .ops = &sim_fx_plant,
                       .commands = closed ? sim_firmware_commands : replay_commands,
                       .commands_user = closed ? (void *)&writer : (void *)&replay, .load = logged_load,
                       .load_user = (void *)load_n, .rng = &rng,

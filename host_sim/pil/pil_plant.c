@@ -23,7 +23,8 @@
 #include "stepper.h"
 
 static plant_config s_cfg;
-static plant s_plant;
+static plant_fx s_fx; /* with the config's effects */
+static const plant *const s_plant = &s_fx.pl;
 static plant_rng s_rng;
 static sim_load_step s_steps[4];
 static sim_schedule_cursor s_cursor;
@@ -50,10 +51,13 @@ int pil_open(const char *config_path, char *err, int err_len)
 {
     if (plant_config_load(config_path, &s_cfg, err, (size_t)err_len) != 0)
         return -1;
-    plant_init(&s_plant, &s_cfg.plant);
+    if (sim_plant_open(&s_fx, &s_cfg, NULL, 0, NULL, NULL) != 0) {
+        snprintf(err, (size_t)err_len, "%s: the config's effects cannot run", config_path);
+        return -1;
+    }
     plant_rng_seed(&s_rng, s_cfg.sensors.noise_seed);
     s_cursor = (sim_schedule_cursor){s_steps, sim_schedule_from_config(&s_cfg, s_steps, &s_end_s), 0};
-    s_stepper = (sim_stepper){.cfg = &s_cfg, .plant = &s_plant, .ops = &sim_nominal_plant,
+    s_stepper = (sim_stepper){.cfg = &s_cfg, .plant = &s_fx, .ops = &sim_fx_plant,
                               .commands = image_outputs, .load = sim_load_from_schedule,
                               .load_user = &s_cursor, .rng = s_cfg.sensors.noise_counts > 0.0 ? &s_rng : NULL,
                               .initial_outputs = true};
@@ -88,10 +92,10 @@ void pil_decide(const int32_t outputs[4], int32_t applied[4])
 void pil_state(double out[6])
 {
     out[0] = s_stepper.t_s_now;
-    out[1] = s_plant.x[PLANT_X_Y];
-    out[2] = s_plant.x[PLANT_X_P2];
-    out[3] = s_plant.x[PLANT_X_P1];
-    out[4] = s_plant.p.acc_type == PLANT_ACC_NONE ? NAN : s_plant.x[PLANT_X_P3];
+    out[1] = s_plant->x[PLANT_X_Y];
+    out[2] = s_plant->x[PLANT_X_P2];
+    out[3] = s_plant->x[PLANT_X_P1];
+    out[4] = s_plant->p.acc_type == PLANT_ACC_NONE ? NAN : s_plant->x[PLANT_X_P3];
     out[5] = s_stepper.in.load_n;
 }
 

@@ -88,6 +88,8 @@ typedef struct {
     int nparams;
     double lo[PLANT_FX_MAX_PARAMS], hi[PLANT_FX_MAX_PARAMS]; /* accepted ranges, SI */
     const plant_fx_ops *ops;
+    const char *param[PLANT_FX_MAX_PARAMS];  /* names, SI suffixed (the config's keys) */
+    double nominal[PLANT_FX_MAX_PARAMS];     /* the nominal plant's values; NaN: none given */
 } plant_fx_model;
 
 /* The candidates (generated from effects.json). */
@@ -130,6 +132,18 @@ void plant_fx_set_inputs(plant_fx *f, const plant_inputs *in);
 void plant_fx_advance(plant_fx *f, double dt_s, int substeps);
 /* What the transducers report: height m, P2, P1, P3 Pa abs (P3 = ambient without accumulator). */
 void plant_fx_sensed(const plant_fx *f, double out[4]);
+
+/* ---- the config's effects ([effect.NAME] sections, plant_config_effects.c) ---- */
+
+/* One key of [effect.<effect>]: key = value (SI) into cfg; 0, or -1 with the
+ * reason in msg (unknown effect or parameter, out of the catalogue's range,
+ * more effects than the plant runs at once). */
+int plant_config_effect_key(plant_config *cfg, const char *effect, const char *key, double value, char *msg,
+                            size_t len);
+/* The catalogue entries of the config's effects, NULL for an empty slot. */
+void plant_config_effect_models(const plant_config *cfg, const plant_fx_model *models[PLANT_CONFIG_MAX_EFFECTS]);
+/* 0 if the config's effects can run together, else -1 with msg. */
+int plant_config_effects_check(const plant_config *cfg, char *msg, size_t len);
 
 /* ---- building blocks shared by candidate and truth models ---- */
 

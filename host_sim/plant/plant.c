@@ -44,6 +44,14 @@ double plant_effective_area_m2(const plant_params *p, double load_n, double y_m)
     return cc1 + cc2 * y_m;
 }
 
+double plant_spring_volume_at(const plant_params *p, double load_n, double y_m)
+{
+    /* dV2 = Ae dy with Ae = cc1 + cc2 y (eq. 17), integrated exactly */
+    double cc1, cc2, y0 = p->init_height_m;
+    area_coefficients(p, load_n, &cc1, &cc2);
+    return p->spring_volume0_m3 + cc1 * (y_m - y0) + 0.5 * cc2 * (y_m * y_m - y0 * y0);
+}
+
 const plant_hysteresis_band *plant_band_for_load(const plant_params *p, double load_n)
 {
     /* Smallest load_below above the load; else the band with the largest load_below. */

@@ -8,6 +8,7 @@
 #include "ini_guard.h"
 #include "plant.h"
 #include "config_table.h"
+#include "effects.h"
 
 #include <errno.h>
 #include <ini.h>
@@ -494,6 +495,22 @@ static int store_field(file_ctx *fc, size_t i, int band, const unit *u, const ch
     return 1;
 }
 
+/* A key of an [effect.NAME] section (plant_config_effects.c): 1 done, 0 failed. */
+static int read_effect(file_ctx *fc, const char *section, const char *name, const char *value)
+{
+    double v;
+    char msg[600];
+    if (parse_number(value, &v) != 0) {
+        fail(fc, section, name, value, "not a number");
+        return 0;
+    }
+    if (plant_config_effect_key(fc->ctx->cfg, section + 7, name, v, msg, sizeof msg) != 0) {
+        fail(fc, section, name, value, "%s", msg);
+        return 0;
+    }
+    return 1;
+}
+
 static int handler(void *user, const char *section, const char *name, const char *value)
 {
     file_ctx *fc = user;
@@ -504,6 +521,8 @@ static int handler(void *user, const char *section, const char *name, const char
         return 0;
     }
     fc->keys_seen++;
+    if (strncmp(section, "effect.", 7) == 0)
+        return read_effect(fc, section, name, value);
     if (!is_known_section(section)) {
         fail(fc, section, name, value, "unknown section [%s] (see docs/config-format.md)", section);
         return 0;
@@ -794,6 +813,9 @@ int plant_config_load(const char *path, plant_config *out, char *err, size_t err
         rc = check_given(ctx, path);
         if (rc == 0)
             rc = plant_config_check(out, err, err_len);
+        char msg[400];
+        if (rc == 0 && plant_config_effects_check(out, msg, sizeof msg) != 0)
+            rc = cfail(err, err_len, out, "%s", msg);
     }
     free(ctx);
     return rc;

@@ -1,6 +1,7 @@
 /* The resolved config as JSON (plant.h: plant_config_write_json), from the loader's tables, built with cJSON. */
 #include "plant.h"
 #include "config_table.h"
+#include "effects.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -100,6 +101,22 @@ static void json_extras(cJSON *sec, const char *section, const plant_params *p)
     }
 }
 
+/* "effects": {NAME: {param: value}} for the config's [effect.NAME] sections. */
+static cJSON *json_effects(const plant_config *c)
+{
+    const plant_fx_model *models[PLANT_CONFIG_MAX_EFFECTS];
+    plant_config_effect_models(c, models);
+    cJSON *all = cJSON_CreateObject();
+    for (int s = 0; s < PLANT_CONFIG_MAX_EFFECTS; s++) {
+        if (!models[s])
+            continue;
+        cJSON *one = cJSON_AddObjectToObject(all, models[s]->name);
+        for (int k = 0; k < models[s]->nparams; k++)
+            add_number(one, models[s]->param[k], c->effect_params[s][k]);
+    }
+    return all;
+}
+
 static cJSON *config_json(const plant_config *c)
 {
     cJSON *root = cJSON_CreateObject();
@@ -119,6 +136,7 @@ static cJSON *config_json(const plant_config *c)
             json_extras(sec, fd->section, &c->plant);
     }
     cJSON_AddItemToObject(root, "hysteresis", json_bands(&c->plant));
+    cJSON_AddItemToObject(root, "effects", json_effects(c));
     return root;
 }
 

@@ -67,7 +67,7 @@ typedef struct {
 
 typedef struct {
     plant_config cfg;
-    plant pl;
+    plant_fx pl; /* with the config's effects */
     plant_rng rng;
     sim_load_step steps[4];
     sim_load_step *file_steps; /* --schedule: loads from a schedule file (its register columns are not served) */
@@ -101,7 +101,9 @@ static uint64_t time_ms(const served_plant *sp)
 static void publish(served_plant *sp)
 {
     uint16_t counts[4];
-    plant_sensor_counts(&sp->pl, &sp->cfg.sensors, &sp->rng, counts);
+    double sensed[4];
+    plant_fx_sensed(&sp->pl, sensed);
+    plant_counts(&sp->cfg.sensors, sensed, &sp->rng, counts);
     for (int i = 0; i < 4; i++)
         sp->map->tab_input_registers[REG_COUNTS + i] = counts[i];
     /* the load cell reads the load now */
@@ -187,7 +189,10 @@ static int start_plant(served_plant *sp, const char *config, const char *schedul
         fprintf(stderr, "leveler-plant-server: %s\n", modbus_strerror(errno));
         return 1;
     }
-    plant_init(&sp->pl, &sp->cfg.plant);
+    if (sim_plant_open(&sp->pl, &sp->cfg, NULL, 0, NULL, NULL) != 0) {
+        fprintf(stderr, "leveler-plant-server: %s: the config's effects cannot run\n", config);
+        return 2;
+    }
     plant_rng_seed(&sp->rng, sp->cfg.sensors.noise_seed);
     double end_s;
     sp->cursor = (sim_schedule_cursor){sp->steps, sim_schedule_from_config(&sp->cfg, sp->steps, &end_s), 0};
@@ -198,7 +203,7 @@ static int start_plant(served_plant *sp, const char *config, const char *schedul
     }
     if (schedule)
         sp->cursor = (sim_schedule_cursor){sp->file_steps, count, 0}; /* the last load holds past its end */
-    sp->st = (sim_stepper){.cfg = &sp->cfg, .plant = &sp->pl, .ops = &sim_nominal_plant,
+    sp->st = (sim_stepper){.cfg = &sp->cfg, .plant = &sp->pl, .ops = &sim_fx_plant,
                            .commands = coil_commands, .commands_user = sp->map,
                            .load = sim_load_from_schedule, .load_user = &sp->cursor, .initial_outputs = true};
     sim_stepper_start(&sp->st);

@@ -73,7 +73,7 @@ static void events_track(sim_events *e, const sim_stepper *s)
             e->safe_from_s = s->t_s_now;
         e->safe_s += SIM_TICK_S;
     }
-    double y = ((const plant *)s->plant)->x[PLANT_X_Y], tol = 1e-9;
+    double y = ((const plant_fx *)s->plant)->pl.x[PLANT_X_Y], tol = 1e-9; /* sim_run's plant */
     if (!e->end_stop && (y <= p->height_min_m + tol || y >= p->height_max_m - tol)) {
         e->end_stop = y <= p->height_min_m + tol ? -1 : 1;
         e->end_stop_t_s = s->t_s_now;
@@ -102,8 +102,11 @@ int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
     memset(res, 0, sizeof *res);
     events_start(&res->events);
 
-    static plant pl; /* large; one simulation at a time anyway */
-    plant_init(&pl, &cfg->plant);
+    static plant_fx f; /* large; one simulation at a time anyway */
+    if (sim_plant_open(&f, cfg, NULL, 0, NULL, NULL) != 0) {
+        snprintf(err, err_len, "%s: the config's effects cannot run", cfg->path);
+        return -1;
+    }
     plant_rng rng;
     plant_rng_seed(&rng, cfg->sensors.noise_seed);
     if (sim_firmware_start(cfg, o->algorithm ? o->algorithm : cfg->algorithm, err, err_len) != 0)
@@ -112,7 +115,7 @@ int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
      * config's [initial] actuators and the firmware first decides at the end
      * of it, as Appendix B's controller does after its first step. */
     sim_schedule_writer writer = {.steps = cursor.steps, .count = cursor.count};
-    sim_stepper st = {.cfg = cfg, .plant = &pl, .ops = &sim_nominal_plant, .commands = sim_firmware_commands,
+    sim_stepper st = {.cfg = cfg, .plant = &f, .ops = &sim_fx_plant, .commands = sim_firmware_commands,
                       .commands_user = &writer, .load = sim_load_from_schedule, .load_user = &cursor,
                       .rng = cfg->sensors.noise_counts > 0.0 ? &rng : NULL, .initial_outputs = true};
     sim_stepper_start(&st);
@@ -139,6 +142,6 @@ int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
         sim_stepper_advance(&st);
     }
     res->end_s = end_s;
-    res->final_plant = pl;
+    res->final_plant = f.pl;
     return 0;
 }

@@ -10,6 +10,37 @@ static void nominal_sensed(const void *pl, double out[4]) { plant_sensed(pl, out
 
 const sim_plant_ops sim_nominal_plant = {nominal_set_inputs, nominal_advance, nominal_sensed};
 
+static void fx_set_inputs(void *f, const plant_inputs *in) { plant_fx_set_inputs(f, in); }
+static void fx_advance(void *f, double dt_s, int substeps) { plant_fx_advance(f, dt_s, substeps); }
+static void fx_sensed(const void *f, double out[4]) { plant_fx_sensed(f, out); }
+
+const sim_plant_ops sim_fx_plant = {fx_set_inputs, fx_advance, fx_sensed};
+
+int sim_plant_open(plant_fx *f, const plant_config *cfg, const plant_params *p, int n_more,
+                   const plant_fx_model *const *more, const double *more_params)
+{
+    const plant_fx_model *models[2 * PLANT_FX_MAX_MODELS];
+    double params[2 * PLANT_FX_MAX_MODELS][PLANT_FX_MAX_PARAMS];
+    plant_config_effect_models(cfg, models);
+    memcpy(params, cfg->effect_params, sizeof cfg->effect_params);
+    int n = PLANT_FX_MAX_MODELS;
+    for (int i = 0; i < n_more && i < PLANT_FX_MAX_MODELS; i++, n++) {
+        models[n] = more[i];
+        memcpy(params[n], more_params + i * PLANT_FX_MAX_PARAMS, sizeof params[n]);
+    }
+    /* the config's effects first, then the requested ones, empty slots skipped */
+    int used = 0;
+    for (int i = 0; i < n; i++)
+        if (models[i]) {
+            models[used] = models[i];
+            memmove(params[used], params[i], sizeof params[used]);
+            used++;
+        }
+    if (used > PLANT_FX_MAX_MODELS)
+        return PLANT_FX_PAIR_REFUSED;
+    return plant_fx_init_models(f, p ? p : &cfg->plant, used, models, &params[0][0]);
+}
+
 void sim_initial_outputs(const plant_config *cfg, bool out[HAL_OUT_COUNT])
 {
     memset(out, 0, HAL_OUT_COUNT * sizeof out[0]);

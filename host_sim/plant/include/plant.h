@@ -27,6 +27,9 @@
 #define PLANT_MAX_DIAPHRAGM_SEGMENTS 8
 #define PLANT_NAME_MAX 64
 #define PLANT_PATH_MAX 512
+/* [effect.NAME] sections of a config (effects.h: PLANT_FX_MAX_MODELS, PLANT_FX_MAX_PARAMS) */
+#define PLANT_CONFIG_MAX_EFFECTS 2
+#define PLANT_CONFIG_EFFECT_PARAMS 8
 
 /* Unit conversions used by the loader, the tests and the reports. */
 #define PLANT_PA_PER_PSI 6894.757293168361
@@ -142,6 +145,11 @@ typedef struct {
      * motor := true, solenoid := true, and its controller first acts after the
      * first step). 0 or 1: compressor, spring valve, vent valve, accumulator valve. */
     int init_compressor, init_spring_valve, init_vent_valve, init_acc_valve;
+    /* Unmodelled effects the plant runs ([effect.NAME] sections, the catalogue
+     * host_sim/plant/effects.json): ids (0 = none) and SI parameters in the
+     * catalogue's order; every program that runs the plant runs them. */
+    int effect_id[PLANT_CONFIG_MAX_EFFECTS];
+    double effect_params[PLANT_CONFIG_MAX_EFFECTS][PLANT_CONFIG_EFFECT_PARAMS];
     char name[PLANT_NAME_MAX];
     char path[PLANT_PATH_MAX];
 } plant_config;
@@ -240,6 +248,9 @@ void plant_advance(plant *pl, double dt_s, int substeps);
 /* Effective area at height y for a load (m^2). */
 double plant_effective_area_m2(const plant_params *p, double load_n, double y_m);
 /* The band for a load, and its lines (gauge Pa) at height y. */
+/* The spring's volume at height y_m under load_n: the config's volume
+ * (spring_volume0, at [initial] height) plus the area swept between them. */
+double plant_spring_volume_at(const plant_params *p, double load_n, double y_m);
 const plant_hysteresis_band *plant_band_for_load(const plant_params *p, double load_n);
 double plant_up_limit_pag(const plant_hysteresis_band *b, double y_m);
 double plant_down_limit_pag(const plant_hysteresis_band *b, double y_m);

@@ -23,6 +23,7 @@
 
 #include "leveler/app.h"
 #include "leveler/hal.h"
+#include "effects.h"
 #include "plant.h"
 
 /* The firmware's tick (leveler/app.h) is the simulator's time step. */
@@ -101,6 +102,17 @@ typedef struct {
 } sim_plant_ops;
 
 extern const sim_plant_ops sim_nominal_plant; /* plant.h's plant */
+extern const sim_plant_ops sim_fx_plant;      /* effects.h's plant_fx */
+
+/* THE plant of a config: f from p (NULL: the config's own parameters) with
+ * the config's [effect.NAME] sections switched on, then n_more requested
+ * models (NULL entries skipped) with PLANT_FX_MAX_PARAMS values each in
+ * more_params. Without effects it steps exactly as the nominal plant. Returns
+ * plant_fx_init_models's code (0; -1 a value outside its range;
+ * PLANT_FX_PAIR_REFUSED: more than PLANT_FX_MAX_MODELS, or ones that cannot
+ * run together). */
+int sim_plant_open(plant_fx *f, const plant_config *cfg, const plant_params *p, int n_more,
+                   const plant_fx_model *const *more, const double *more_params);
 
 /* ---- the stepper ---- */
 

@@ -8,6 +8,7 @@ the installed package (pip install .), then in the project's build folders
 import ctypes
 import functools
 import glob
+import hashlib
 import os
 
 import numpy as np
@@ -20,7 +21,7 @@ from leveler import paths
 
 # the names --config takes: the checkout's host_sim/configs, else the installed package's copy
 CONFIG_DIR = paths.data("host_sim/configs", "configs")
-ABI = 4
+ABI = 5
 MAX_PARAMS = 8
 SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
 COMMANDS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
@@ -353,6 +354,49 @@ class CPlant(Simulator):
         self._omega_cache = {}
         self.lib.diag_config_check.restype = ctypes.c_int
         self.lib.diag_config_check.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_int]
+        self.lib.diag_config_effects.restype = ctypes.c_int
+        self.lib.diag_config_effects.argtypes = [ctypes.c_char_p, ctypes.POINTER(ctypes.c_int32),
+                                                 ctypes.POINTER(ctypes.c_double), ctypes.c_char_p, ctypes.c_int]
+        self._config_fx = {}
+        self._twins = None    # folder of the configs with their effects at nominal (effects_off)
+
+    def config_effects(self, config):
+        """The config's own effects ([effect.NAME] sections, which the C plant runs on
+        every call): {name: {parameter: value}}, cached by file and time."""
+        path = config_path(config)
+        key = (path, os.stat(path).st_mtime_ns)
+        if key not in self._config_fx:
+            ids = np.zeros(fx.MAX_AT_ONCE, dtype=np.int32)
+            vals = np.zeros(fx.MAX_AT_ONCE * MAX_PARAMS)
+            err = ctypes.create_string_buffer(512)
+            if self.lib.diag_config_effects(path.encode(), _iptr(ids), _dptr(vals), err, len(err)) != 0:
+                raise DiagnoseInputError(err.value.decode(errors="replace"))
+            out = {}
+            for i, k in enumerate(ids):
+                if k:
+                    e = fx.BY_ID[int(k)]
+                    out[e.name] = {q.name: float(vals[i * MAX_PARAMS + j]) for j, q in enumerate(e.params)}
+            self._config_fx[key] = out
+        return self._config_fx[key]
+
+    def effects_off(self, config):
+        """config itself, or for one with effects a twin that sets each of their parameters
+        to its nominal value: the nominal plant, bit for bit (an effect at its nominal values
+        changes nothing), for what is estimated on the nominal plant (the start state)."""
+        own = self.config_effects(config)
+        if not own:
+            return config
+        import tempfile
+        self._twins = self._twins or tempfile.mkdtemp(prefix="leveler-effects-off-")
+        text = f"[config]\ninclude = {config_path(config)}\n" + "".join(
+            f"\n[effect.{name}]\n" + "".join(f"{q.name} = {q.nominal!r}\n" for q in fx.get(name).params)
+            for name in own)
+        path = os.path.join(self._twins, hashlib.sha1(text.encode()).hexdigest()[:16] + ".ini")
+        if not os.path.exists(path):
+            with open(path + ".tmp", "w") as fh:
+                fh.write(text)
+            os.replace(path + ".tmp", path)
+        return path
 
     def configs(self):
         return sorted(os.path.splitext(os.path.basename(p))[0]
@@ -442,12 +486,16 @@ class CPlant(Simulator):
     def start_state(self, config, run, effect=None, params=None):
         """The 5 initial values diag_simulate takes, estimated from the log."""
         init, duty = initial_state(run)
-        omega, p1_shift = self.start_motor_speed(config, run, list(init), duty)
+        # on the nominal plant, whether the effects are asked for or in the config
+        omega, p1_shift = self.start_motor_speed(self.effects_off(config), run, list(init), duty)
         init[2] += p1_shift
         params = params or {}
         dh, dp = getattr(run, "start_shift", (0.0, 0.0))
         init[0] += dh
         init[1] += dp
+        lag = self.config_effects(config).get("sensor_lag")
+        if lag is not None:
+            effect, params = "sensor_lag", lag
         if "sensor_lag" in fx.parts(effect):
             # the log shows what the transducers read: the plant started at reading - offset
             init[0] -= params.get("h_offset_m", 0.0)

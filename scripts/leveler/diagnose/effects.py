@@ -60,6 +60,7 @@ def load(path=CATALOGUE):
 
 EFFECTS = load()
 BY_NAME = {e.name: e for e in EFFECTS}
+BY_ID = {e.effect_id: e for e in EFFECTS}
 NAMES = [e.name for e in EFFECTS]
 
 
