@@ -40,6 +40,9 @@ def parse_args(argv):
     ap.add_argument("--design", metavar="A,B", default=None,
                     help="propose the experiment that best tells candidate A from B (done anyway "
                          "for candidates the logs cannot tell apart); written to DIR/experiment.csv")
+    ap.add_argument("--write-config", metavar="FILE", default=None,
+                    help="write the rig's model as found (an include of --config, the calibrated values, the "
+                         "named effect as [effect.NAME]) for leveler-sim and every program that runs the plant")
     ap.add_argument("--quiet", action="store_true", help="no progress output")
     ap.add_argument("--allow-config-mismatch", action="store_true",
                     help="diagnose logs whose '# config:' names another config than --config's own name "
@@ -184,6 +187,11 @@ def diagnose_into(a, say, tmp, out):
         from . import design
         design.write_schedule(os.path.join(tmp, OUT_FILES[2]), result["experiment"])
     publish_out(tmp, out)
+    if a.write_config:
+        from . import write_config
+        write_config.write(a.write_config, result, config_name(a.config), leveler.__version__)
+        say(f"wrote {a.write_config}: the model of these logs (leveler-compare --config {a.write_config} LOG "
+            f"reproduces the held-out gap {result['gap_after']['normalised']:.4f})")
     if result.get("config_mismatch"):
         say("verdict against logs of another config: " + ", ".join(
             f"{m['logged']} (not {m['config']})" for m in result["config_mismatch"]))

@@ -372,6 +372,32 @@ def _settle_calibration(sim, calibration, handles, top, u_top, named, holdout, m
     return fit.Problem(sim, cal.config(v), holdout, mode, fit.start_shifts(holdout))
 
 
+def model_of(config, calibration, handles, v, entry):
+    """The model the verdict's held-out figures were simulated with, for --write-config:
+    the config as given, the calibrated values (v: the vector the final figures used,
+    None off the calibration path) and the named entry's effect values, each with where
+    it came from. Values are the very floats the simulations had."""
+    keys = []
+    if v is not None:
+        cal = handles[0]
+        table = {p["name"]: p for p in calibration["parameters"]}
+        for n, val in zip(cal.space.params, cal.space.values(v)):
+            p = table.get(n.name, {})
+            keys.append({"section": n.section, "key": n.key, "name": n.name, "value": float(val),
+                         "config": p.get("config"), "interval": p.get("interval"),
+                         "chosen": bool(p.get("chosen")), "moved": bool(p.get("moved"))})
+    effects = {}
+    for e in fx.parts(entry["effect"]) if entry else ():
+        effects[e] = {q.name: {"value": float(entry["params"][q.name]["value"]),
+                               "interval": entry["params"][q.name].get("interval")} for q in fx.get(e).params}
+    return {"config": config_path_of(config), "keys": keys, "effects": effects}
+
+
+def config_path_of(config):
+    from .cplant import config_path
+    return config_path(config) if isinstance(config, str) else config
+
+
 JOINT_CANDIDATES = 2   # the effects (best alone on the config as given) fitted with the calibration
 
 
@@ -584,8 +610,10 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
     finding = None if features else _unexplained_step(hold_problem, holdout, ranking, kept, gaps[1], noise,
                                                       threshold, progress)
     named = named and finding is None
+    final_v = None
     if calibrated_path:
         hold_problem = _settle_calibration(sim, calibration, handles, ranking[0], u_top, named, holdout, mode)
+        final_v = u_top if named else handles[2]
     winner = best["effect"] if named else ("not explained" if finding else "none")
     effects = kept["effects"] if kept and named else ([winner] if named else [])
     look = lookalike_step(cal_problem, ranking, threshold, named and named_single and not features, progress,
@@ -599,5 +627,7 @@ def _diagnose(spec, sim, config, calib, holdout, mode, candidates, jobs, progres
                                       features)
     result = _result(config, mode, calib, holdout, threshold, floor, where, calibration, sure, finding, noise,
                      ranking, winner, effects, (pair_list, kept, second), look, ba, gaps, named, t0)
+    # what the after-figures ran on (--write-config): exact values, not the report's digits
+    result["model"] = model_of(config, calibration, handles, final_v, (kept or best) if named else None)
     traces = {"holdout": holdout, "nominal": user_nominal_hold, "augmented": aug_hold}
     return result, traces
