@@ -135,11 +135,35 @@ def truth_params(effect, rng):
     return [float(rng.uniform(*p["draw"])) for p in TRUTH[effect]["params"]]
 
 
-def schedules(rng, system):
+WALK_S = 600.0      # --shape walk: a rig in service, 10 minutes
+WALK_STEPS = 15     # load changes of random size and sign per walk
+
+
+def walk(rng, base_lb, top_lb, end_s=WALK_S, steps=WALK_STEPS):
+    """A load walk as a rig in service logs it: `steps` changes at random times
+    (at least 20 s apart, the first after 5 s), each to a random load between the
+    base and the top, at least 40 lb from the last (up or down)."""
+    slack = rng.dirichlet(np.ones(steps + 1)) * (end_s - 30.0 - 20.0 * steps)
+    times = 5.0 + np.cumsum(20.0 + slack[:steps]) - 20.0     # the last at most end_s - 45 s
+    load, out = base_lb, [(0.0, base_lb * LB)]
+    for t in times:
+        nxt = load
+        while abs(nxt - load) < 40.0:
+            nxt = float(rng.uniform(base_lb, top_lb))
+        load = nxt
+        out.append((float(round(t, 2)), load * LB))
+    return out
+
+
+def schedules(rng, system, shape="step"):
     """Two calibration schedules and one held-out one, all different. The
     held-out step lies between the calibration steps: it tests the fitted
-    model on a new schedule, not on heights no calibration run reached."""
+    model on a new schedule, not on heights no calibration run reached.
+    shape "walk": three 10-minute walks of 15 load changes each (walk), between
+    the base and the largest calibration step."""
     _, base_lb, (c1, c2), h = SYSTEMS[system]
+    if shape == "walk":
+        return [(name, walk(rng, base_lb, base_lb + max(c1, c2)), WALK_S) for name in ("cal1", "cal2", "hold")]
     j = lambda: rng.uniform(-1.0, 1.0)
     base = base_lb * LB
     return [
@@ -161,16 +185,16 @@ def pair_case(seed, j, per_seed):
     return PAIRS[((seed - 1) * per_seed + j) * PAIR_STRIDE % len(PAIRS)]
 
 
-def rig_config(folder, system, seed, misset=None):
+def rig_config(folder, system, seed, misset=None, algorithm=None):
     """The system's config with a count of sensor noise the firmware reads, on a rig run
     as the thesis's was: no chatter fault stops algorithm 2's compressor chattering at the
     charge limit (a rig with the product default would go safe and show no effect).
     misset: a MISSET case (family_specs): its one nominal parameter changed, the rest the
-    system's (resolved by the C loader)."""
+    system's (resolved by the C loader). algorithm: the rig's controller (default the config's)."""
     path = os.path.join(folder, "rig.ini")
     base = os.path.join(CONFIG_DIR, SYSTEMS[system][0] + ".ini")
     sections = {"sensors": [f"noise_counts = {FIRMWARE_NOISE_COUNTS}", f"noise_seed = {seed}"],
-                "controller": ["chatter_max_per_min = 0"]}
+                "controller": ["chatter_max_per_min = 0"] + ([f"algorithm = {algorithm}"] if algorithm else [])}
     if misset:
         resolved = leveler_config.resolved(base)
         for sec, key in misset["keys"]:
@@ -238,17 +262,23 @@ def write_truth_log(sim, path, rig, system, steps, end, effect, params, kind, rn
     runs.write_run(path, ts, sig, load[idx], cmds, SYSTEMS[system][0], "rig")
 
 
-def generate_case(sim, effect, seed, folder, system="900lb", kind="100Hz", slot=None):
+def generate_case(sim, effect, seed, folder, system="900lb", kind="100Hz", slot=None, shape="step",
+                  algorithm=None):
     """Writes cal1.csv, cal2.csv, hold.csv; returns the truth parameters (for a
     pair "a+b" the two lists)."""
     rng = np.random.default_rng(seed * 1000 + (CASES.index(effect) if slot is None else slot))
     names = fx.parts(effect)
     params = [truth_params(e, rng) for e in names] if len(names) > 1 else truth_params(effect, rng)
-    rig = rig_config(os.path.dirname(os.path.abspath(folder)), system, seed)
-    for name, steps, end in schedules(rng, system):
+    rig = rig_config(os.path.dirname(os.path.abspath(folder)), system, seed, algorithm=algorithm)
+    for name, steps, end in schedules(rng, system, shape):
         write_truth_log(sim, os.path.join(folder, f"{name}.csv"), rig, system, steps, end, effect, params,
                         kind, rng)
     return params
+
+
+def logged_seconds(folder, names=("cal1", "cal2", "hold")):
+    """The logs' total span, s: what one diagnosis simulates once per model."""
+    return float(sum(np.ptp(runs.load_run(os.path.join(folder, f"{n}.csv")).t_s) for n in names))
 
 
 def diagnose_blind(folder, out, config, extra, runs_=("cal1", "cal2"), holdout="hold"):
@@ -289,14 +319,15 @@ def run_experiment(sim, folder, d, case, params, system, kind, seed, extra, spec
     return d2["effect"]
 
 
-def run_case(sim, top, seed, case, index, extra, force=(None, None), slot=None):
-    """One case: a single effect (slot None: its place in CASES) or a pair (slot given)."""
+def run_case(sim, top, seed, case, index, extra, force=(None, None, "step", None), slot=None):
+    """One case: a single effect (slot None: its place in CASES) or a pair (slot given).
+    force: (system, log kind, schedule shape, algorithm), None = the rotation's / config's."""
     system, kind = case_kind(seed, CASES.index(case) if slot is None else slot)
     system, kind = force[0] or system, force[1] or kind
     folder = os.path.join(top, f"seed{seed}-{index:02d}")
     logs = os.path.join(folder, "logs")
     os.makedirs(logs, exist_ok=True)
-    params = generate_case(sim, case, seed, logs, system, kind, slot)
+    params = generate_case(sim, case, seed, logs, system, kind, slot, *force[2:])
     # the sealed label: beside the logs, never passed to the diagnosis
     with open(os.path.join(folder, "label.sealed.json"), "w") as fh:
         json.dump({"effect": case, "truth_params": params, "seed": seed, "system": system, "log": kind}, fh)
@@ -304,6 +335,7 @@ def run_case(sim, top, seed, case, index, extra, force=(None, None), slot=None):
     d = diagnose_blind(logs, os.path.join(folder, "diagnosis"), SYSTEMS[system][0], extra)
     r = {"seed": seed, "truth": case, "system": system, "log": kind, "named": d["effect"],
          "shrink_pct": d["shrink_pct"], "margin_pct": d["margin_pct"], "seconds": time.perf_counter() - t0,
+         "logged_s": logged_seconds(logs),
          "lookalikes": lookalike_set(d),
          "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]],
          "effects": d.get("effects", []), "confidence": confidence_level(d),
@@ -358,7 +390,7 @@ def param_named(names, param):
     return any(all(w in n.lower() for w in words) for n in names)
 
 
-def run_form_case(sim, top, seed, spec, index, extra, force=(None, None)):
+def run_form_case(sim, top, seed, spec, index, extra, force=(None, None, "step", None)):
     """One case of another family (family_specs): a form of the second truth family,
     or a mis-set rig with no effect."""
     spec = dict(spec, form_id=spec.get("form_id", 0))
@@ -371,8 +403,8 @@ def run_form_case(sim, top, seed, spec, index, extra, force=(None, None)):
     os.makedirs(logs, exist_ok=True)
     rng = np.random.default_rng(seed * 1000 + spec["slot"])
     params = form_params(spec["form"], rng) if spec["form_id"] else []
-    rig = rig_config(folder, system, seed, spec if spec["family"] == "misset" else None)
-    for name, steps, end in schedules(rng, system):
+    rig = rig_config(folder, system, seed, spec if spec["family"] == "misset" else None, force[3])
+    for name, steps, end in schedules(rng, system, force[2]):
         write_truth_log(sim, os.path.join(logs, f"{name}.csv"), rig, system, steps, end, "none", params, kind,
                         rng, form_id=spec["form_id"])
     with open(os.path.join(folder, "label.sealed.json"), "w") as fh:
@@ -384,6 +416,7 @@ def run_form_case(sim, top, seed, spec, index, extra, force=(None, None)):
     r = {"family": spec["family"], "form": spec["form"], "seed": seed, "truth": spec["truth"], "system": system,
          "log": kind, "named": d["effect"], "verdict": d["effect"], "shrink_pct": d["shrink_pct"],
          "margin_pct": d.get("margin_pct"), "seconds": time.perf_counter() - t0, "truth_params": params,
+         "logged_s": logged_seconds(logs),
          "lookalikes": lookalike_set(d), "effects": d.get("effects", []),
          "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]],
          "calibration": d.get("calibration"), "calibrated": cal, "confidence": confidence_level(d),
@@ -523,7 +556,10 @@ def summary(results):
            "lookalike_cases": sum(1 for r in results if r["lookalikes"]),
            # a second effect kept where there is one effect (or none)
            "false_second": sum(1 for r in results if len(r.get("effects", [])) > 1),
-           "median_seconds": float(np.median([r["seconds"] for r in results])) if results else float("nan")}
+           "median_seconds": float(np.median([r["seconds"] for r in results])) if results else float("nan"),
+           # diagnosis time per second of log: a 10-minute walk must cost no more per second than the step test
+           "median_s_per_logged_s": float(np.median([r["seconds"] / r["logged_s"] for r in results
+                                                     if r.get("logged_s")])) if results else float("nan")}
     for key in ("system", "log"):
         out[f"by_{key}"] = {v: f"{sum(1 for r in right if r[key] == v)}/{sum(1 for r in results if r[key] == v)}"
                             for v in sorted({r[key] for r in results})}
@@ -539,6 +575,11 @@ def main(argv=None):
     # --log names a run-log file elsewhere (one name per thing): the kind is --log-kind, --log kept for old scripts
     ap.add_argument("--log-kind", "--log", dest="log", choices=sorted(LOG_KINDS),
                     help="only this log kind (default: rotate)")
+    ap.add_argument("--shape", choices=("step", "walk"), default="step",
+                    help="the logs: the thesis's step test (55 s), or a rig in service: 10-minute walks of "
+                         f"{WALK_STEPS} load changes of random size and sign")
+    ap.add_argument("--algorithm", type=int, choices=(1, 2, 3), default=None,
+                    help="the rig's controller (default: each system config's)")
     ap.add_argument("--fast", action="store_true", help="smaller fitting budget (the CTest variant)")
     ap.add_argument("--out", "--keep", dest="keep", metavar="DIR",
                     help="keep logs, sealed labels and diagnoses here (default: a temporary folder)")
@@ -582,7 +623,8 @@ def main(argv=None):
     t_all = time.perf_counter()
     for seed in range(a.first_seed, a.first_seed + a.seeds):
         for case in cases:
-            r = run_case(sim, top, seed, case, len(results) + len(pair_results), extra, (a.system, a.log))
+            r = run_case(sim, top, seed, case, len(results) + len(pair_results), extra,
+                             (a.system, a.log, a.shape, a.algorithm))
             results.append(r)
             ok = "ok " if r["verdict"] == case else "MISS"
             look = f" look-alikes {r['lookalikes']} -> {r['after_experiment']}" if r["lookalikes"] else ""
@@ -593,7 +635,8 @@ def main(argv=None):
                   f"top: {r['ranking'][:3]}", flush=True)
         for j in range(a.pairs):
             case = pair_case(seed, j, a.pairs)
-            r = run_case(sim, top, seed, case, len(results) + len(pair_results), extra, (a.system, a.log),
+            r = run_case(sim, top, seed, case, len(results) + len(pair_results), extra,
+                         (a.system, a.log, a.shape, a.algorithm),
                          slot=len(CASES) + j)
             pair_results.append(r)
             print(f"{'ok ' if r['both_top_two'] else 'MISS'} seed {seed} {r['system']:<11} {r['log']:<5} "
@@ -613,7 +656,8 @@ def main(argv=None):
         print(f"pairs, both effects among the top two: {s['pairs_both_top_two']}/{s['pair_cases']} "
               f"(target >= 80%, 8 of 10); both named (pair kept): {s['pairs_both_kept']}; "
               f"leader one of the two: {s['pairs_leader_right']}")
-    print(f"median diagnosis time {s['median_seconds']:.1f} s; total {time.perf_counter() - t_all:.0f} s; "
+    print(f"median diagnosis time {s['median_seconds']:.1f} s ({1e3 * s['median_s_per_logged_s']:.0f} ms per s "
+          f"of log); total {time.perf_counter() - t_all:.0f} s; "
           f"logs and diagnoses in {top}")
     if a.json:
         with open(a.json, "w") as fh:
@@ -649,7 +693,8 @@ def main_families(a):
         fam_res = []
         for seed in range(a.first_seed, a.first_seed + a.seeds):
             for sp in specs:
-                r = run_form_case(sim, top, seed, sp, len(results) + len(fam_res), extra, (a.system, a.log))
+                r = run_form_case(sim, top, seed, sp, len(results) + len(fam_res), extra,
+                             (a.system, a.log, a.shape, a.algorithm))
                 fam_res.append(r)
                 look = f" look-alikes {r['lookalikes']} -> {r.get('after_experiment')}" if r["lookalikes"] else ""
                 cal = f" calibrated {r['calibrated']}" if r["calibration"] is not None else ""
