@@ -364,8 +364,12 @@ def _settle_calibration(sim, calibration, handles, top, u_top, named, holdout, m
                                         "values": {p["name"]: float(vals[j])
                                                    for j, p in enumerate(calibration["parameters"])}},
                            moved=moved, kept=bool(moved))
-        for p in calibration["parameters"]:
+        for j, p in enumerate(calibration["parameters"]):
             p["moved"] = p["name"] in moved
+            # the values fitted with the effect are the model's; the calibration alone's stay beside them
+            if j in chosen:
+                p.update(value_alone=p["value"], change_pct_alone=p["change_pct"], value=float(vals[j]),
+                         change_pct=(float(vals[j]) / p["config"] - 1.0) * 100.0)
         calibration["ini"] = calibrate.ini_text(cal.space.config_file, cal.space.name, cal.space.params, vals,
                                                 [f"fitted with {top['effect']}" for _ in cal.space.params]) \
             if moved else None

@@ -12,19 +12,25 @@ import time
 from leveler import runlog
 
 
+def _interval(iv, value):
+    """The 95 % interval when it is the value's (a joint fit moves the value away from
+    the interval of the fit alone: then none is claimed)."""
+    if iv and iv[0] <= value <= iv[1]:
+        return f", 95 % interval {iv[0]:.6g}..{iv[1]:.6g}"
+    return ", no interval (fitted jointly)" if iv else ""
+
+
 def _key_note(k):
     if not k["chosen"]:
         return "not fitted: the config's value"
-    iv = k.get("interval")
-    span = f", 95 % interval {iv[0]:.6g}..{iv[1]:.6g}" if iv else ""
+    span = _interval(k.get("interval"), k["value"])
     state = "calibrated" if k["moved"] else "fitted, not moved"
     rel = (k["value"] / k["config"] - 1.0) * 100.0 if k.get("config") else 0.0
     return f"{state}: config {k['config']:.6g}, {rel:+.1f} %{span}"
 
 
 def _effect_note(effect, p):
-    iv = p.get("interval")
-    return f"fitted ({effect})" + (f", 95 % interval {iv[0]:.6g}..{iv[1]:.6g}" if iv else "")
+    return f"fitted ({effect})" + _interval(p.get("interval"), p["value"])
 
 
 def text(result, name, version):
