@@ -47,9 +47,10 @@ firmware: bootstrap
 	$(call configure,build/stm32f103,-DCMAKE_BUILD_TYPE=MinSizeRel -DCMAKE_TOOLCHAIN_FILE=$(CURDIR)/cmake/arm-none-eabi.cmake)
 	$(CMAKE) --build build/stm32f103 -j $(JOBS)
 
+# make pil [PIL_CONFIG=my-rig-model.ini]: the image under emulation on that config (default the thesis 900 lb)
 pil: bootstrap firmware
 	@mkdir -p build
-	$(call configure,build/pil,-DCMAKE_BUILD_TYPE=Release)
+	$(call configure,build/pil,-DCMAKE_BUILD_TYPE=Release -DLEVELER_PIL_CONFIG=$(abspath $(or $(PIL_CONFIG),host_sim/configs/thesis-900lb.ini)))
 	$(CMAKE) --build build/pil -j $(JOBS)
 	$(CMAKE) --build build/pil --target run-pil
 
