@@ -548,6 +548,39 @@ static uint16_t latched_after_noisy_run(const char *controller_extra)
     return leveler_app_status()->latched_fault_bits;
 }
 
+/* plant_spring_volume_at (the replay's start volume, diag_shim.c) against the
+ * plant's own integration of dV2 = Ae dy: the platform lifted by filling the
+ * spring, then dropped by venting it, under one load; the volume the plant
+ * carries at each height is the one the function gives for that height. */
+static void test_volume_at_height_follows_the_plant(void **state)
+{
+    (void)state;
+    plant pl;
+    plant_config cfg;
+    thesis_plant(&pl, &cfg);
+    const double load = 900.0 * LBF;
+    set(&pl, 1, 1, 0, 0, load);
+    double worst = 0.0, ymin = 1.0, ymax = 0.0;
+    for (int k = 0; k < 3000; k++) {
+        if (k == 1500)
+            set(&pl, 0, 1, 1, 0, load);
+        plant_step(&pl, 0.01);
+        double v = plant_spring_volume_at(&cfg.plant, load, pl.x[PLANT_X_Y]);
+        worst = fmax(worst, fabs(v - pl.x[PLANT_X_V2]));
+        ymin = fmin(ymin, pl.x[PLANT_X_Y]);
+        ymax = fmax(ymax, pl.x[PLANT_X_Y]);
+    }
+    assert_true(ymax - ymin > 0.5 * IN); /* the platform did travel */
+    /* RK4 on a volume of 4.4e-3 m3: agreement to round-off, over a travel of inches */
+    assert_true(worst < 1e-12);
+    double y0 = cfg.plant.init_height_m;
+    assert_true(plant_spring_volume_at(&cfg.plant, load, y0) == cfg.plant.spring_volume0_m3);
+    /* an inch higher holds about Ae x 1 in more (Ae ~ 100 in^2 at 900 lb) */
+    double dv = plant_spring_volume_at(&cfg.plant, load, y0 + IN) - cfg.plant.spring_volume0_m3;
+    double ae = plant_effective_area_m2(&cfg.plant, load, y0 + 0.5 * IN);
+    assert_true(fabs(dv - ae * IN) < 1e-12);
+}
+
 static void test_config_chatter_limit(void **state)
 {
     (void)state;
@@ -587,6 +620,7 @@ int main(void)
         cmocka_unit_test(test_firmware_equals_program_1000),
         cmocka_unit_test(test_accumulator_faster),
         cmocka_unit_test(test_config_chatter_limit),
+        cmocka_unit_test(test_volume_at_height_follows_the_plant),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
