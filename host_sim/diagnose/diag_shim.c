@@ -8,6 +8,7 @@
  * dlopen'ed from the venv python; host_sim/diagnose/CMakeLists.txt); the
  * sanitized test build checks the effects through tests/diagnose/test_effects.c.
  */
+#define _POSIX_C_SOURCE 200809L /* open_memstream */
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -32,6 +33,37 @@ int diag_config_check(const char *path, char *err, int err_len)
 {
     static plant_config cfg;
     return plant_config_load(path, &cfg, err, (size_t)err_len);
+}
+
+/* The resolved config as JSON (plant_config_write_json; path NULL: the
+ * built-in one) into buf (buf_len bytes, NUL-terminated; buf NULL: only the
+ * length). Returns the length without the NUL, or -1 with err (the loader's
+ * file:line message, or a buffer too small). Python's leveler.config reads it. */
+int diag_config_json(const char *path, char *buf, int buf_len, char *err, int err_len)
+{
+    static plant_config cfg;
+    if (path)
+        if (plant_config_load(path, &cfg, err, (size_t)err_len) != 0)
+            return -1;
+    if (!path)
+        plant_config_defaults(&cfg);
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
+    if (!f || plant_config_write_json(&cfg, f) != 0 || fclose(f) != 0) {
+        snprintf(err, (size_t)err_len, "%s: cannot write the config as JSON", path ? path : "(built-in)");
+        free(text);
+        return -1;
+    }
+    int rc = (int)len;
+    if (buf && (size_t)buf_len <= len) {
+        snprintf(err, (size_t)err_len, "config JSON: %zu bytes, buffer %d", len + 1, buf_len);
+        rc = -1;
+    } else if (buf) {
+        memcpy(buf, text, len + 1);
+    }
+    free(text);
+    return rc;
 }
 
 /* The config's own effects ([effect.NAME] sections): ids[PLANT_FX_MAX_MODELS]

@@ -5,7 +5,8 @@ Modules
 runlog   read / write the run-log CSV (docs/log-format.md), with unit checks
 thesis   published numbers of the thesis (SI) and unit helpers
 events   event figures of a load step and a load removal (docs/events.md)
-config   the simulator config as its C loader resolves it (leveler-sim --dump-config)
+config   the simulator config as its C loader resolves it (leveler.engine, the C engine's binding)
+engine   the C engine's one binding: libleveler_diag.so found once, its ABI checked once
 plot     the report figure (matplotlib, Agg)
 report   command line: python -m leveler.report --log run.csv ...
 cli      the command style every Python program shares (argparse, --version, exit codes)

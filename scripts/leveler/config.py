@@ -1,27 +1,25 @@
 """The simulator's config as the C loader resolves it (docs/config-format.md).
 
 There is one config loader, the simulator's (host_sim/plant/plant_config.c:
-units, ranges, includes, defaults). Python asks it, ``leveler-sim
---dump-config [--config FILE]``, and reads the JSON it prints: every key in
-SI with its SI unit suffix, the hysteresis bands with the load range each
-covers. Errors are the loader's own ``file:line: [section] key = value:
-reason``.
+units, ranges, includes, defaults, [effect.NAME] sections). Python asks it
+through the engine's one binding (leveler.engine: diag_config_json, the same
+JSON ``leveler-sim --dump-config`` prints): every key in SI with its SI unit
+suffix, the hysteresis bands with the load range each covers, the effects.
+Errors are the loader's own ``file:line: [section] key = value: reason``.
 
-``leveler-sim`` is found in $LEVELER_SIM (set by leveler-sim itself for the
-report it runs, and by the tests), else in the installed package (pip install
-.), else in the project's build folders (leveler/paths.py).
+``find_sim`` finds ``leveler-sim`` for those who run it: $LEVELER_SIM, else the
+installed package (pip install .), else the project's build folders
+(leveler/paths.py).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 import os
-import subprocess
 from typing import List, Optional
 
-from . import paths
+from . import engine, paths
 
 
 class ConfigError(ValueError):
@@ -90,12 +88,10 @@ def find_sim():
 
 @functools.lru_cache(maxsize=64)
 def _resolved(path, mtime):
-    cmd = [find_sim(), "--dump-config"] + (["--config", path] if path else [])
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    if p.returncode != 0:
-        msg = p.stderr.strip()
-        raise ConfigError(msg[len("leveler-sim: "):] if msg.startswith("leveler-sim: ") else msg)
-    return json.loads(p.stdout)
+    try:
+        return engine.config_json(path)
+    except engine.EngineError as e:
+        raise ConfigError(str(e)) from None
 
 
 def resolved(path=None) -> dict:

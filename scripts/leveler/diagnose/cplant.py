@@ -17,22 +17,21 @@ from . import effects as fx
 from .errors import DiagnoseInputError
 from .model import CLOSED_LOOP, Simulator, Trace
 
-from leveler import paths
+from leveler import engine, paths
 
 # the names --config takes: the checkout's host_sim/configs, else the installed package's copy
 CONFIG_DIR = paths.data("host_sim/configs", "configs")
-ABI = 5
+ABI = engine.ABI
 MAX_PARAMS = 8
 SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
 COMMANDS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
 SCENARIO_KEYS = ("base_load_n", "step_load_n", "step_on_s", "step_off_s", "end_s")
 
 
-def find_library(env="LEVELER_DIAG_LIB", folder="diagnose", name="libleveler_diag.so", target="leveler_diag"):
+def find_library(*args, **kw):
     try:
-        return paths.compiled(env, f"_lib/{name}", f"host_sim/{folder}/{name}",
-                              f"build it with `cmake --build build/sim --target {target}`")
-    except paths.NotFound as e:
+        return engine.find_library(*args, **kw)
+    except engine.EngineError as e:
         raise DiagnoseInputError(str(e)) from None
 
 
@@ -41,17 +40,15 @@ def find_truth_library():
     return find_library("LEVELER_TRUTH_LIB", "blindtest", "libleveler_truth.so", "leveler_truth")
 
 
-@functools.lru_cache(maxsize=None)
-def _library(path):
-    return ctypes.CDLL(path)
+_library = engine.load
 
 
 def _diag_library(path=None):
-    """libleveler_diag.so, refused when built for another ABI (rebuild it)."""
-    lib = _library(path or find_library())
-    if lib.diag_abi_version() != ABI:
-        raise DiagnoseInputError("libleveler_diag.so has another ABI version; rebuild it")
-    return lib
+    """libleveler_diag.so through the one binding (leveler.engine)."""
+    try:
+        return engine.library(path)
+    except engine.EngineError as e:
+        raise DiagnoseInputError(str(e)) from None
 
 
 def scenario_loads(t_s, scenario):
