@@ -42,17 +42,15 @@ static void thesis(ctlbench_scenario *sc, const char *config, double base_lbf)
     sc->end_s = THESIS_END_S;
 }
 
-/* The thesis steps (+200 lb at 5 s, removed at 35 s), then rest_s of rest
- * scored from REST_SETTLE_S after the removal (the issue's hunting case). */
-static void rest(ctlbench_scenario *sc, const char *config, double noise, double rest_s)
+void ctlbench_thesis_rest(ctlbench_scenario *sc, const char *name, const char *config_file, double noise,
+                          uint32_t seed, double rest_s)
 {
     memset(sc, 0, sizeof *sc);
-    char name[CTLBENCH_NAME_MAX];
-    snprintf(name, sizeof name, "rest-%s-noise%g", config + strlen("thesis-"), noise);
-    name_scenario(sc, name, config);
+    snprintf(sc->name, sizeof sc->name, "%s", name);
+    snprintf(sc->config, sizeof sc->config, "%s", config_file);
     sc->kind = CTLBENCH_REST;
     sc->noise_counts = noise;
-    sc->noise_seed = 100u + (uint32_t)noise;
+    sc->noise_seed = seed;
     sc->steps[0] = (sim_load_step){.t_s = 0.0, .load_n = LOAD_900_N};
     sc->steps[1] = (sim_load_step){.t_s = 5.0, .load_n = LOAD_900_N + STEP_N};
     sc->steps[2] = (sim_load_step){.t_s = 35.0, .load_n = LOAD_900_N};
@@ -60,6 +58,15 @@ static void rest(ctlbench_scenario *sc, const char *config, double noise, double
     sc->rest_from_s = 35.0 + REST_SETTLE_S;
     sc->rest_to_s = sc->rest_from_s + rest_s;
     sc->end_s = sc->rest_to_s;
+}
+
+/* The thesis steps then rest_s of rest (the hunting case), seed 100 + noise. */
+static void rest(ctlbench_scenario *sc, const char *config, double noise, double rest_s)
+{
+    char name[CTLBENCH_NAME_MAX], file[CTLBENCH_NAME_MAX];
+    snprintf(name, sizeof name, "rest-%s-noise%g", config + strlen("thesis-"), noise);
+    snprintf(file, sizeof file, "%s.ini", config);
+    ctlbench_thesis_rest(sc, name, file, noise, 100u + (uint32_t)noise, rest_s);
 }
 
 /* Deterministic uniform in [0, 1) (xorshift32). */
