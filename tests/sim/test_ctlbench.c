@@ -4,7 +4,9 @@
  * of the same run (no stored figures), plus the learnt hysteresis lines
  * against the simulator's own lines.
  */
+#define _XOPEN_SOURCE 700
 #include <math.h>
+#include <unistd.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -16,6 +18,7 @@
 
 #include "ctlbench.h"
 #include "ctlbench_limit.h"
+#include "ctlbench_family.h"
 #include "leveler/alg3.h"
 #include "leveler/settings.h"
 
@@ -199,6 +202,40 @@ static void test_limit_search_is_the_scan(void **state)
     assert_true(searched <= best + 1e-12);
 }
 
+/* The perturbed family: every rig's INI file passes the config loader, its values are the thesis
+ * rig's times the drawn factors, and the factors lie in the issue's ranges. */
+static void test_family_rigs_load_as_drawn(void **state)
+{
+    (void)state;
+    static plant_config base, rig;
+    char err[512], dir[] = "/tmp/leveler-family-XXXXXX", path[600];
+    assert_non_null(mkdtemp(dir));
+    assert_int_equal(plant_config_load(CONFIG_DIR "/" CTLBENCH_FAMILY_BASE, &base, err, sizeof err), 0);
+    for (unsigned i = 0; i < 24; i++) {
+        ctlbench_rig r;
+        ctlbench_family_draw(19u, i, &r);
+        assert_int_equal(ctlbench_family_write(&r, dir, CONFIG_DIR, err, sizeof err), 0);
+        snprintf(path, sizeof path, "%s/%s", dir, r.file);
+        if (plant_config_load(path, &rig, err, sizeof err) != 0)
+            fail_msg("%s", err);
+        const plant_params *b = &base.plant, *p = &rig.plant;
+        assert_true(r.spring_orifice >= 0.75 && r.spring_orifice <= 1.25 && r.vent_cd >= 0.75 && r.vent_cd <= 1.25);
+        assert_true(r.damping_up >= 0.5 && r.damping_up <= 2.0 && r.charge >= 0.9 && r.charge <= 1.1);
+        assert_true(fabs(p->spring_volume0_m3 / b->spring_volume0_m3 - r.spring_volume) < 1e-6);
+        assert_true(fabs(p->vent_valve_cd / b->vent_valve_cd - r.vent_cd) < 1e-4);
+        assert_true(fabs(p->compressor_capacity_m3_per_rad / b->compressor_capacity_m3_per_rad - r.displacement) < 1e-6);
+        assert_true(fabs((p->acc_charge_pa - p->ambient_pa) / (b->acc_charge_pa - b->ambient_pa) - r.charge) < 1e-6);
+        for (int k = 0; k < CTLBENCH_FAMILY_BANDS; k++) {
+            assert_true(r.gap_psi[k] >= 8.0 && r.gap_psi[k] <= 14.0 && fabs(r.up_shift_psi[k]) <= 5.0);
+            assert_true(fabs(p->bands[k].down_offset_pa / PLANT_PA_PER_PSI - r.gap_psi[k]) < 1e-3);
+            assert_true(fabs((p->bands[k].up_intercept_pag - b->bands[k].up_intercept_pag) / PLANT_PA_PER_PSI -
+                             r.up_shift_psi[k]) < 1e-3);
+        }
+        assert_int_equal(remove(path), 0);
+    }
+    assert_int_equal(rmdir(dir), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -208,6 +245,7 @@ int main(void)
         cmocka_unit_test(test_learnt_lines_match_the_plant),
         cmocka_unit_test(test_limit_bounds_algorithm3),
         cmocka_unit_test(test_limit_search_is_the_scan),
+        cmocka_unit_test(test_family_rigs_load_as_drawn),
     };
     return cmocka_run_group_tests(tests, run_suite, done);
 }
