@@ -185,14 +185,16 @@ static void print_table(const rig_result *r, size_t n, size_t w, int seed)
     for (size_t i = 0; i < n; i++)
         print_rig(&r[i]);
     unsigned hunting = 0;
-    double worst_over = 0.0;
+    size_t most = 0, over = 0;
     for (size_t i = 0; i < n; i++) {
         hunting += r[i].a3.rest_switchings > 0;
-        worst_over = r[i].a3.overshoot_max_m > worst_over ? r[i].a3.overshoot_max_m : worst_over;
+        most = r[i].a3.rest_switchings > r[most].a3.rest_switchings ? i : most;
+        over = r[i].a3.overshoot_max_m > r[over].a3.overshoot_max_m ? i : over;
     }
     printf("(ratio: over the limit's return, taken as at least %.0f s; unset: steps never settled; sw/st: "
            "switchings per step)\n", LOAD_S);
-    printf("rigs that switched at rest: %u of %zu; largest overshoot %.3f in\n", hunting, n, worst_over * IN_PER_M);
+    printf("rigs that switched at rest: %u of %zu (most: %s, %u); largest overshoot %.3f in (%s)\n", hunting, n,
+           r[most].rig.file, r[most].a3.rest_switchings, r[over].a3.overshoot_max_m * IN_PER_M, r[over].rig.file);
     printf("worst rig: %s (return %.2fx its limit, %u switchings at rest, overshoot %.3f in)\n", r[w].rig.file,
            r[w].worst, r[w].a3.rest_switchings, r[w].a3.overshoot_max_m * IN_PER_M);
 }
