@@ -200,20 +200,21 @@ static int32_t line_prediction(const leveler_settings *set, bool up, int32_t h, 
     return leveler_sat_i32(up ? (int64_t)h + travel_um : (int64_t)h - travel_um);
 }
 
-/* A prediction with its travel stretched by EARLY_NUM/EARLY_DEN. */
+/* A prediction with its travel stretched by EARLY_NUM/EARLY_DEN (an estimate's hedge). */
 static int64_t stretched(int32_t h, int32_t pred)
 {
     return (int64_t)h + ((int64_t)pred - h) * LEVELER_ALG3_EARLY_NUM / LEVELER_ALG3_EARLY_DEN;
 }
 
 bool leveler_alg3_close_now(const leveler_settings *set, bool up, int32_t h, int32_t rate_um_s, int32_t p_spring_pa,
-                            int32_t line_pa)
+                            int32_t line_pa, bool line_sure)
 {
     int32_t target = leveler_alg3_target_um(set);
     int32_t along = up ? rate_um_s : -rate_um_s;
     uint16_t coast = up ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
     int64_t by_rate = along > LEVELER_ALG3_STILL_UM_S ? stretched(h, leveler_alg3_predict_um(h, rate_um_s, coast)) : h;
-    int64_t by_line = stretched(h, line_prediction(set, up, h, p_spring_pa, line_pa));
+    int32_t line_rest = line_prediction(set, up, h, p_spring_pa, line_pa);
+    int64_t by_line = line_sure ? (int64_t)line_rest : stretched(h, line_rest);
     if (up) {
         return h >= target || h > set->band_upper_um || by_rate >= target || by_line >= target;
     }
@@ -244,7 +245,9 @@ static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int3
     bool up = a->phase == LEVELER_ALG3_FILLING;
     int32_t line = leveler_alg3_line_estimate(a, set, up, h);
     bool burst = burst_done(a, up, p_spring_pa, line, now_ms);
-    if (leveler_alg3_close_now(set, up, h, leveler_alg3_prediction_rate(a), p_spring_pa, line) || burst) {
+    /* the line broke away from in this move is the present load's: its coast needs no stretch */
+    bool sure = a->watch.line_fresh;
+    if (leveler_alg3_close_now(set, up, h, leveler_alg3_prediction_rate(a), p_spring_pa, line, sure) || burst) {
         leveler_alg3_note_close(a, up ? 1 : -1, p_spring_pa, line);
         enter(a, LEVELER_ALG3_SETTLING, now_ms);
     }

@@ -42,17 +42,15 @@ static void thesis(ctlbench_scenario *sc, const char *config, double base_lbf)
     sc->end_s = THESIS_END_S;
 }
 
-/* The thesis steps (+200 lb at 5 s, removed at 35 s), then rest_s of rest
- * scored from REST_SETTLE_S after the removal (the issue's hunting case). */
-static void rest(ctlbench_scenario *sc, const char *config, double noise, double rest_s)
+void ctlbench_thesis_rest(ctlbench_scenario *sc, const char *name, const char *config_file, double noise,
+                          uint32_t seed, double rest_s)
 {
     memset(sc, 0, sizeof *sc);
-    char name[CTLBENCH_NAME_MAX];
-    snprintf(name, sizeof name, "rest-%s-noise%g", config + strlen("thesis-"), noise);
-    name_scenario(sc, name, config);
+    snprintf(sc->name, sizeof sc->name, "%s", name);
+    snprintf(sc->config, sizeof sc->config, "%s", config_file);
     sc->kind = CTLBENCH_REST;
     sc->noise_counts = noise;
-    sc->noise_seed = 100u + (uint32_t)noise;
+    sc->noise_seed = seed;
     sc->steps[0] = (sim_load_step){.t_s = 0.0, .load_n = LOAD_900_N};
     sc->steps[1] = (sim_load_step){.t_s = 5.0, .load_n = LOAD_900_N + STEP_N};
     sc->steps[2] = (sim_load_step){.t_s = 35.0, .load_n = LOAD_900_N};
@@ -60,6 +58,15 @@ static void rest(ctlbench_scenario *sc, const char *config, double noise, double
     sc->rest_from_s = 35.0 + REST_SETTLE_S;
     sc->rest_to_s = sc->rest_from_s + rest_s;
     sc->end_s = sc->rest_to_s;
+}
+
+/* The thesis steps then rest_s of rest (the hunting case), seed 100 + noise. */
+static void rest(ctlbench_scenario *sc, const char *config, double noise, double rest_s)
+{
+    char name[CTLBENCH_NAME_MAX], file[CTLBENCH_NAME_MAX];
+    snprintf(name, sizeof name, "rest-%s-noise%g", config + strlen("thesis-"), noise);
+    snprintf(file, sizeof file, "%s.ini", config);
+    ctlbench_thesis_rest(sc, name, file, noise, 100u + (uint32_t)noise, rest_s);
 }
 
 /* Deterministic uniform in [0, 1) (xorshift32). */
@@ -196,19 +203,15 @@ static size_t row_at(double t_s, size_t rows)
     return i < rows ? i : rows;
 }
 
-static void score_steps(const ctlbench_scenario *sc, const runlog_row *rows, size_t n, const band *b,
-                        ctlbench_metrics *m)
+void ctlbench_aggregate(ctlbench_metrics *m)
 {
     double returns[CTLBENCH_MAX_STEPS];
     unsigned sw = 0;
-    m->step_count = sc->step_count - 1;
-    for (size_t s = 1; s < sc->step_count; s++) {
-        ctlbench_step *st = &m->step[s - 1];
-        st->t_s = sc->steps[s].t_s;
-        st->load_change_n = sc->steps[s].load_n - sc->steps[s - 1].load_n;
-        double t_end = s + 1 < sc->step_count ? sc->steps[s + 1].t_s : sc->end_s + TICK_S;
-        score_step(rows, row_at(st->t_s, n), row_at(t_end, n), b, st);
-        returns[s - 1] = st->return_s;
+    m->return_worst_s = m->overshoot_max_m = 0.0;
+    m->unsettled_steps = 0;
+    for (size_t k = 0; k < m->step_count; k++) {
+        const ctlbench_step *st = &m->step[k];
+        returns[k] = st->return_s;
         m->return_worst_s = st->return_s > m->return_worst_s ? st->return_s : m->return_worst_s;
         m->overshoot_max_m = st->overshoot_m > m->overshoot_max_m ? st->overshoot_m : m->overshoot_max_m;
         m->unsettled_steps += st->settled ? 0u : 1u;
@@ -218,6 +221,20 @@ static void score_steps(const ctlbench_scenario *sc, const runlog_row *rows, siz
     size_t k = m->step_count;
     m->return_median_s = k == 0 ? 0.0 : (k % 2 ? returns[k / 2] : 0.5 * (returns[k / 2 - 1] + returns[k / 2]));
     m->switchings_per_step = k == 0 ? 0.0 : (double)sw / (double)k;
+}
+
+static void score_steps(const ctlbench_scenario *sc, const runlog_row *rows, size_t n, const band *b,
+                        ctlbench_metrics *m)
+{
+    m->step_count = sc->step_count - 1;
+    for (size_t s = 1; s < sc->step_count; s++) {
+        ctlbench_step *st = &m->step[s - 1];
+        st->t_s = sc->steps[s].t_s;
+        st->load_change_n = sc->steps[s].load_n - sc->steps[s - 1].load_n;
+        double t_end = s + 1 < sc->step_count ? sc->steps[s + 1].t_s : sc->end_s + TICK_S;
+        score_step(rows, row_at(st->t_s, n), row_at(t_end, n), b, st);
+    }
+    ctlbench_aggregate(m);
 }
 
 /* Run-wide figures: switchings, compressor time, air out of the vent, time outside, the rest window. */
@@ -245,42 +262,64 @@ static void score_run(const ctlbench_scenario *sc, const runlog_row *rows, size_
         m->rest_switchings_per_min = m->rest_switchings / ((sc->rest_to_s - sc->rest_from_s) / 60.0);
 }
 
-int ctlbench_run(const ctlbench_scenario *sc, int algorithm, const char *configs_dir, const char *log_path,
-                 runlog_row *rows, size_t rows_cap, ctlbench_metrics *m, char *err, size_t err_len)
+int ctlbench_config(const ctlbench_scenario *sc, int algorithm, const char *configs_dir, plant_config *cfg,
+                    char *err, size_t err_len)
 {
-    static plant_config cfg;
     char path[PLANT_PATH_MAX];
     snprintf(path, sizeof path, "%s/%s", configs_dir, sc->config);
-    if (plant_config_load(path, &cfg, err, err_len) != 0)
+    if (plant_config_load(path, cfg, err, err_len) != 0)
         return -1;
     /* The end stops are the config's ([platform] height_min / height_max: the
      * thesis configs set the spring's travel, 13.76..17.61 in). */
-    cfg.sensors.noise_counts = sc->noise_counts;
-    cfg.sensors.noise_seed = sc->noise_seed;
+    cfg->sensors.noise_counts = sc->noise_counts;
+    cfg->sensors.noise_seed = sc->noise_seed;
     /* Algorithms 1 and 2 run as the thesis has them: no chatter fault to stop their hunting. */
     if (algorithm != 3)
-        cfg.chatter_max_per_min = 0;
+        cfg->chatter_max_per_min = 0;
+    return 0;
+}
+
+void ctlbench_score(const ctlbench_scenario *sc, const plant_config *cfg, const runlog_row *rows, const sim_result *res,
+                    int algorithm, ctlbench_metrics *m)
+{
+    memset(m, 0, sizeof *m);
+    m->algorithm = algorithm;
+    band b = {cfg->band_lower_m, cfg->band_upper_m};
+    score_steps(sc, rows, res->rows, &b, m);
+    score_run(sc, rows, res->rows, &b, &res->final_plant, m);
+    m->latched_faults = leveler_app_status()->latched_fault_bits;
+}
+
+int ctlbench_simulate(const ctlbench_scenario *sc, const sim_options *so, const char *log_path, sim_result *res,
+                      char *err, size_t err_len)
+{
     runlog *rl = NULL;
     if (log_path) {
         runlog_options lo = {.path = log_path, .config_name = sc->name, .source = "sim"};
         if (!(rl = runlog_open(&lo, err, err_len)))
             return -1;
     }
-    sim_options so = {.config = &cfg, .algorithm = algorithm, .steps = sc->steps, .step_count = sc->step_count,
-                      .end_s = sc->end_s, .log = rl, .rows = rows, .rows_cap = rows_cap};
-    static sim_result res;
-    int rc = sim_run(&so, &res, err, err_len);
+    sim_options o = *so;
+    o.log = rl;
+    int rc = sim_run(&o, res, err, err_len);
     if (rl && runlog_close(rl) != 0 && rc == 0) {
         snprintf(err, err_len, "%s: close failed", log_path);
         rc = -1;
     }
-    if (rc != 0)
+    return rc;
+}
+
+int ctlbench_run(const ctlbench_scenario *sc, int algorithm, const char *configs_dir, const char *log_path,
+                 runlog_row *rows, size_t rows_cap, ctlbench_metrics *m, char *err, size_t err_len)
+{
+    static plant_config cfg;
+    if (ctlbench_config(sc, algorithm, configs_dir, &cfg, err, err_len) != 0)
         return -1;
-    memset(m, 0, sizeof *m);
-    m->algorithm = algorithm;
-    band b = {cfg.band_lower_m, cfg.band_upper_m};
-    score_steps(sc, rows, res.rows, &b, m);
-    score_run(sc, rows, res.rows, &b, &res.final_plant, m);
-    m->latched_faults = leveler_app_status()->latched_fault_bits;
+    sim_options so = {.config = &cfg, .algorithm = algorithm, .steps = sc->steps, .step_count = sc->step_count,
+                      .end_s = sc->end_s, .rows = rows, .rows_cap = rows_cap};
+    static sim_result res;
+    if (ctlbench_simulate(sc, &so, log_path, &res, err, err_len) != 0)
+        return -1;
+    ctlbench_score(sc, &cfg, rows, &res, algorithm, m);
     return 0;
 }

@@ -21,6 +21,7 @@
 
 #include "cli.h"
 #include "ctlbench.h"
+#include "ctlbench_limit.h"
 #include "leveler/version.h"
 #include "pyrun.h"
 
@@ -33,20 +34,53 @@
 
 typedef struct {
     ctlbench_scenario sc;
-    ctlbench_metrics m[3]; /* algorithms 1, 2, 3 */
+    ctlbench_metrics m[4]; /* algorithms 1, 2, 3 and the limit */
+    ctlbench_limit_moves limit;
 } scored;
 
-static void row3(const char *label, const char *fmt, double a, double b, double c)
+#define LIMIT 3 /* m[LIMIT]: the limit's run */
+
+/* Algorithm 3's return over the limit's on one step; NAN when the limit never left the band. */
+static double ratio_to_limit(const ctlbench_step *a3, const ctlbench_step *lim)
 {
-    char buf[3][32];
-    const double v[3] = {a, b, c};
-    for (int i = 0; i < 3; i++) {
+    if (lim->return_s <= 0.0)
+        return a3->return_s <= 0.0 ? 1.0 : NAN;
+    return a3->return_s / lim->return_s;
+}
+
+/* Median and worst of algorithm 3's per-step ratios to the limit (steps where both are defined). */
+static void ratios(const ctlbench_metrics *m, double *median, double *worst)
+{
+    double r[CTLBENCH_MAX_STEPS];
+    size_t k = 0;
+    *worst = NAN;
+    for (size_t i = 0; i < m[2].step_count; i++) {
+        double v = ratio_to_limit(&m[2].step[i], &m[LIMIT].step[i]);
+        if (isnan(v))
+            continue;
+        r[k++] = v;
+        *worst = isnan(*worst) || v > *worst ? v : *worst;
+    }
+    for (size_t i = 1; i < k; i++)
+        for (size_t j = i; j > 0 && r[j - 1] > r[j]; j--) {
+            double t = r[j];
+            r[j] = r[j - 1];
+            r[j - 1] = t;
+        }
+    *median = k == 0 ? NAN : (k % 2 ? r[k / 2] : 0.5 * (r[k / 2 - 1] + r[k / 2]));
+}
+
+static void row3(const char *label, const char *fmt, double a, double b, double c, double d)
+{
+    char buf[4][32];
+    const double v[4] = {a, b, c, d};
+    for (int i = 0; i < 4; i++) {
         if (isnan(v[i]))
             snprintf(buf[i], sizeof buf[i], "-");
         else
             snprintf(buf[i], sizeof buf[i], fmt, v[i]);
     }
-    printf("  %-40s %12s %12s %12s\n", label, buf[0], buf[1], buf[2]);
+    printf("  %-40s %12s %12s %12s %12s\n", label, buf[0], buf[1], buf[2], buf[3]);
 }
 
 /* Latched fault bits as codes: "none" or "1,8". */
@@ -60,42 +94,60 @@ static void fault_codes(uint16_t bits, char *out, size_t len)
         snprintf(out, len, "none");
 }
 
+/* One figure of the four runs (algorithms 1, 2, 3, the limit): FIELD is an expression of m[i]. */
+#define ROW4(label, fmt, FIELD) \
+    do { \
+        double v_[4]; \
+        for (int i = 0; i < 4; i++) \
+            v_[i] = (double)(FIELD); \
+        row3(label, fmt, v_[0], v_[1], v_[2], v_[3]); \
+    } while (0)
+
+/* The thesis procedure's two steps, one line per figure, and algorithm 3's ratio to the limit. */
+static void print_thesis_steps(const ctlbench_metrics *m)
+{
+    for (size_t k = 0; k < m[0].step_count; k++) {
+        char label[64];
+        double lb = m[0].step[k].load_change_n / PLANT_N_PER_LBF;
+        snprintf(label, sizeof label, "%+.0f lb at %.0f s: first entry (s)", lb, m[0].step[k].t_s);
+        ROW4(label, "%.2f", m[i].step[k].first_entry_s);
+        snprintf(label, sizeof label, "%+.0f lb at %.0f s: back to stay (s)", lb, m[0].step[k].t_s);
+        ROW4(label, "%.2f", m[i].step[k].return_s);
+        snprintf(label, sizeof label, "%+.0f lb at %.0f s: alg 3 / limit", lb, m[0].step[k].t_s);
+        row3(label, "%.2fx", NAN, NAN, ratio_to_limit(&m[2].step[k], &m[LIMIT].step[k]), NAN);
+    }
+}
+
 static void print_scenario(const scored *s)
 {
     const ctlbench_scenario *sc = &s->sc;
     const ctlbench_metrics *m = s->m;
     printf("\n== %s (%s, noise %g counts, %zu load steps, %.0f s) ==\n", sc->name, sc->config, sc->noise_counts,
            sc->step_count - 1, sc->end_s);
-    printf("  %-40s %12s %12s %12s\n", "", "alg 1", "alg 2", "alg 3");
-    for (size_t k = 0; k < m[0].step_count && sc->kind == CTLBENCH_THESIS; k++) {
-        char label[64];
-        snprintf(label, sizeof label, "%+.0f lb at %.0f s: first entry (s)", m[0].step[k].load_change_n / PLANT_N_PER_LBF,
-                 m[0].step[k].t_s);
-        row3(label, "%.2f", m[0].step[k].first_entry_s, m[1].step[k].first_entry_s, m[2].step[k].first_entry_s);
-        snprintf(label, sizeof label, "%+.0f lb at %.0f s: back to stay (s)", m[0].step[k].load_change_n / PLANT_N_PER_LBF,
-                 m[0].step[k].t_s);
-        row3(label, "%.2f", m[0].step[k].return_s, m[1].step[k].return_s, m[2].step[k].return_s);
-    }
-    row3("return to stay, median (s)", "%.2f", m[0].return_median_s, m[1].return_median_s, m[2].return_median_s);
-    row3("return to stay, worst (s)", "%.2f", m[0].return_worst_s, m[1].return_worst_s, m[2].return_worst_s);
-    row3("steps never settled", "%.0f", m[0].unsettled_steps, m[1].unsettled_steps, m[2].unsettled_steps);
-    row3("overshoot beyond the band (in)", "%.3f", m[0].overshoot_max_m * IN_PER_M, m[1].overshoot_max_m * IN_PER_M,
-         m[2].overshoot_max_m * IN_PER_M);
-    row3("switchings per step", "%.1f", m[0].switchings_per_step, m[1].switchings_per_step, m[2].switchings_per_step);
+    printf("  %-40s %12s %12s %12s %12s\n", "", "alg 1", "alg 2", "alg 3", "limit");
+    if (sc->kind == CTLBENCH_THESIS)
+        print_thesis_steps(m);
+    ROW4("return to stay, median (s)", "%.2f", m[i].return_median_s);
+    ROW4("return to stay, worst (s)", "%.2f", m[i].return_worst_s);
+    double med, worst;
+    ratios(m, &med, &worst);
+    row3("alg 3 / limit per step, median", "%.2fx", NAN, NAN, med, NAN);
+    row3("alg 3 / limit per step, worst", "%.2fx", NAN, NAN, worst, NAN);
+    ROW4("steps never settled", "%.0f", m[i].unsettled_steps);
+    ROW4("overshoot beyond the band (in)", "%.3f", m[i].overshoot_max_m * IN_PER_M);
+    ROW4("switchings per step", "%.1f", m[i].switchings_per_step);
     if (sc->kind == CTLBENCH_REST) {
-        row3("switchings per minute at rest", "%.2f", m[0].rest_switchings_per_min, m[1].rest_switchings_per_min,
-             m[2].rest_switchings_per_min);
-        row3("switchings at rest (scored window)", "%.0f", m[0].rest_switchings, m[1].rest_switchings,
-             m[2].rest_switchings);
-        row3("outside the band at rest (s)", "%.2f", m[0].rest_outside_s, m[1].rest_outside_s, m[2].rest_outside_s);
+        ROW4("switchings per minute at rest", "%.2f", m[i].rest_switchings_per_min);
+        ROW4("switchings at rest (scored window)", "%.0f", m[i].rest_switchings);
+        ROW4("outside the band at rest (s)", "%.2f", m[i].rest_outside_s);
     }
-    row3("compressor on (s)", "%.1f", m[0].compressor_on_s, m[1].compressor_on_s, m[2].compressor_on_s);
-    row3("air vented (kg)", "%.4f", m[0].vented_kg, m[1].vented_kg, m[2].vented_kg);
-    row3("time outside the band (s)", "%.1f", m[0].outside_s, m[1].outside_s, m[2].outside_s);
-    char codes[3][40];
-    for (int a = 0; a < 3; a++)
+    ROW4("compressor on (s)", "%.1f", m[i].compressor_on_s);
+    ROW4("air vented (kg)", "%.4f", m[i].vented_kg);
+    ROW4("time outside the band (s)", "%.1f", m[i].outside_s);
+    char codes[4][40];
+    for (int a = 0; a < 4; a++)
         fault_codes(m[a].latched_faults, codes[a], sizeof codes[a]);
-    printf("  %-40s %12s %12s %12s\n", "latched fault codes", codes[0], codes[1], codes[2]);
+    printf("  %-40s %12s %12s %12s %12s\n", "latched fault codes", codes[0], codes[1], codes[2], codes[3]);
 }
 
 static bool has_accumulator(const ctlbench_scenario *sc, const char *kind)
@@ -133,9 +185,6 @@ static unsigned print_targets(const scored *s, size_t n)
         }
         if (sc->kind == CTLBENCH_THESIS && has_accumulator(sc, "diaphragm")) {
             const ctlbench_step *st = m[2].step; /* +200 lb */
-            verdict("diaphragm: <= 0.7 x alg 2 entry", sc->name, "+200 lb return (s)", m[0].step[0].return_s,
-                    m[1].step[0].first_entry_s, st->return_s,
-                    st->settled && st->return_s <= 0.7 * m[1].step[0].first_entry_s, &missed);
             verdict("diaphragm: fewer switchings", sc->name, "+200 lb switchings", m[0].step[0].switchings,
                     m[1].step[0].switchings, st->switchings, fewer(st->switchings, m[1].step[0].switchings), &missed);
         }
@@ -152,6 +201,37 @@ static unsigned print_targets(const scored *s, size_t n)
         verdict("overshoot after a return <= 0.05 in", sc->name, "overshoot (in)", m[0].overshoot_max_m * IN_PER_M,
                 m[1].overshoot_max_m * IN_PER_M, m[2].overshoot_max_m * IN_PER_M,
                 m[2].overshoot_max_m * IN_PER_M <= 0.05, &missed);
+    }
+    printf("  %u target line(s) missed\n", missed);
+    return missed;
+}
+
+/* Algorithm 3 against the limit (issue 19): every thesis step back to stay within 1.25x the limit's
+ * return; over a random sequence the median within 1.25x, the worst within 2x, every step settled. */
+static unsigned print_limit_targets(const scored *s, size_t n)
+{
+    unsigned missed = 0;
+    printf("\n== targets against the limit (the best single move, ctlbench_limit.h) ==\n");
+    printf("  %-34s %-26s %-22s %9s %9s %9s\n", "target", "scenario", "figure", "limit", "alg 3", "ratio");
+    for (size_t i = 0; i < n; i++) {
+        const ctlbench_scenario *sc = &s[i].sc;
+        const ctlbench_metrics *m = s[i].m;
+        double med, worst;
+        ratios(m, &med, &worst);
+        if (sc->kind == CTLBENCH_THESIS)
+            for (size_t k = 0; k < m[2].step_count; k++) {
+                double r = ratio_to_limit(&m[2].step[k], &m[LIMIT].step[k]);
+                verdict("thesis: return <= 1.25x limit", sc->name,
+                        m[2].step[k].load_change_n > 0 ? "+200 lb return (s)" : "-200 lb return (s)",
+                        m[LIMIT].step[k].return_s, m[2].step[k].return_s, r,
+                        m[2].step[k].settled && !(r > 1.25), &missed);
+            }
+        if (sc->kind == CTLBENCH_RANDOM) {
+            verdict("random: median return <= 1.25x", sc->name, "median ratio", m[LIMIT].return_median_s,
+                    m[2].return_median_s, med, !(med > 1.25), &missed);
+            verdict("random: worst return <= 2x", sc->name, "worst ratio", m[LIMIT].return_worst_s,
+                    m[2].return_worst_s, worst, !(worst > 2.0) && m[2].unsettled_steps == 0, &missed);
+        }
     }
     printf("  %u target line(s) missed\n", missed);
     return missed;
@@ -207,6 +287,27 @@ static cJSON *json_metrics(const ctlbench_metrics *m)
     return o;
 }
 
+/* The limit's run (algorithm 0), its moves, and algorithm 3's ratio to it per step. */
+static cJSON *json_limit(const scored *s)
+{
+    const ctlbench_metrics *m = s->m;
+    cJSON *o = json_metrics(&m[LIMIT]);
+    add_fixed(o, "target_in", s->limit.target_m * IN_PER_M, 4);
+    cJSON *steps = cJSON_GetObjectItem(o, "steps");
+    for (size_t k = 0; k < m[LIMIT].step_count; k++) {
+        cJSON *st = cJSON_GetArrayItem(steps, (int)k);
+        add_fixed(st, "open_s", (double)s->limit.open_ticks[k] * 0.01, 2);
+        add_fixed(st, "target_open_s", (double)s->limit.target_ticks[k] * 0.01, 2);
+        add_fixed(st, "landing_in", s->limit.landing_m[k] * IN_PER_M, 4);
+        add_fixed(st, "alg3_ratio", ratio_to_limit(&m[2].step[k], &m[LIMIT].step[k]), 3);
+    }
+    double med, worst;
+    ratios(m, &med, &worst);
+    add_fixed(o, "alg3_ratio_median", med, 3);
+    add_fixed(o, "alg3_ratio_worst", worst, 3);
+    return o;
+}
+
 static cJSON *json_scorecard(const scored *s, size_t n)
 {
     cJSON *root = cJSON_CreateObject();
@@ -221,6 +322,7 @@ static cJSON *json_scorecard(const scored *s, size_t n)
         cJSON *runs = cJSON_AddArrayToObject(sc, "runs");
         for (int a = 0; a < 3; a++)
             cJSON_AddItemToArray(runs, json_metrics(&s[i].m[a]));
+        cJSON_AddItemToObject(sc, "limit", json_limit(&s[i]));
         cJSON_AddItemToArray(list, sc);
     }
     return root;
@@ -327,6 +429,12 @@ static int run_all(const char *configs, const char *out, bool plots, bool quiet,
                 rc = -1;
             }
         }
+        snprintf(log, sizeof log, "%s/%s-limit.csv", out, s[i].sc.name);
+        if (rc == 0 && ctlbench_limit(&s[i].sc, configs, plots ? log : NULL, rows, cap, &s[i].m[LIMIT], &s[i].limit,
+                                      err, sizeof err) != 0) {
+            fprintf(stderr, "leveler-ctlbench: %s, the limit: %s\n", s[i].sc.name, err);
+            rc = -1;
+        }
     }
     free(rows);
     return rc;
@@ -357,6 +465,7 @@ int main(int argc, char **argv)
     for (size_t i = 0; i < n; i++)
         print_scenario(&s[i]);
     print_targets(s, n);
+    print_limit_targets(s, n);
     if (write_json(out, s, n) != 0 || (plots && plot_all(out, configs, s, n) != 0))
         return 1;
     printf("\nwritten: %s/scorecard.json%s\n", out, plots ? " and one PNG per scenario" : "");

@@ -33,6 +33,7 @@ PROGRAMS = {
     "leveler-schedule-run": (lambda: c_program("leveler-schedule-run"), []),
     "leveler-mbaps": (lambda: c_program("leveler-mbaps"), ["--config"]),
     "leveler-ctlbench": (lambda: c_program("leveler-ctlbench"), ["--out", "--quiet"]),
+    "leveler-ctlbench-family": (lambda: c_program("leveler-ctlbench-family"), ["--out", "--configs", "--rigs"]),
     "leveler-sim-bench": (lambda: c_program("leveler-sim-bench"), ["--config"]),
     "leveler-diagnose": (lambda: [str(ROOT / "scripts" / "leveler-diagnose")], ["--config", "--out", "--quiet"]),
     "leveler-blindtest": (lambda: [str(ROOT / "scripts" / "leveler-blindtest")], ["--out", "--log-kind", "--json"]),

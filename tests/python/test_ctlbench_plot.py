@@ -41,3 +41,17 @@ def test_errors_name_the_file(tmp_path, capsys):
     os.remove(tmp_path / "one-alg2.csv")
     assert ctlbench_plot.main(["--dir", str(tmp_path), "--configs", CONFIGS]) == 1
     assert "one" in capsys.readouterr().err
+
+
+def _png_height(path):
+    with open(path, "rb") as f:
+        head = f.read(24)
+    return int.from_bytes(head[20:24], "big")
+
+
+def test_the_limit_drawn_when_its_log_is_there(tmp_path):
+    _scorecard(tmp_path, ["one", "two"])
+    runlog.write(tmp_path / "two-limit.csv", synth.make_log())
+    assert ctlbench_plot.main(["--dir", str(tmp_path), "--configs", CONFIGS]) == 0
+    # the limit's outputs get a fifth panel: the figure is taller than the one without it
+    assert _png_height(tmp_path / "two.png") > _png_height(tmp_path / "one.png")

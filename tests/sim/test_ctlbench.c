@@ -4,7 +4,9 @@
  * of the same run (no stored figures), plus the learnt hysteresis lines
  * against the simulator's own lines.
  */
+#define _XOPEN_SOURCE 700
 #include <math.h>
+#include <unistd.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -15,6 +17,8 @@
 #include <cmocka.h>
 
 #include "ctlbench.h"
+#include "ctlbench_limit.h"
+#include "ctlbench_family.h"
 #include "leveler/alg3.h"
 #include "leveler/settings.h"
 
@@ -23,6 +27,8 @@
 static ctlbench_scenario suite[8];
 static size_t count;
 static ctlbench_metrics m[8][3];
+static ctlbench_metrics lim[8];
+static ctlbench_limit_moves moves[8];
 static runlog_row *rows;
 
 static int run_suite(void **state)
@@ -40,6 +46,11 @@ static int run_suite(void **state)
                 fprintf(stderr, "%s, algorithm %d: %s\n", suite[i].name, a, err);
                 return -1;
             }
+        }
+    for (size_t i = 0; i < count; i++)
+        if (ctlbench_limit(&suite[i], CONFIG_DIR, NULL, rows, cap, &lim[i], &moves[i], err, sizeof err) != 0) {
+            fprintf(stderr, "%s, the limit: %s\n", suite[i].name, err);
+            return -1;
         }
     return 0;
 }
@@ -143,6 +154,88 @@ static void test_learnt_lines_match_the_plant(void **state)
     assert_true(fabs(down_end_pa - down) < PLANT_PA_PER_PSI);
 }
 
+/* The limit starts every step from algorithm 3's state at the step: on every step of the short suite it
+ * lands in the band, settles, and is back to stay no later than algorithm 3 (it is a lower bound). */
+static void test_limit_bounds_algorithm3(void **state)
+{
+    (void)state;
+    for (size_t i = 0; i < count; i++)
+        for (size_t k = 0; k < lim[i].step_count; k++) {
+            const ctlbench_step *l = &lim[i].step[k], *a3 = &m[i][2].step[k];
+            printf("%s step %zu: limit %.2f s (open %.2f s, lands %.3f in), alg 3 %.2f s\n", suite[i].name, k + 1,
+                   l->return_s, moves[i].open_ticks[k] * 0.01, moves[i].landing_m[k] / IN_M, a3->return_s);
+            assert_true(l->settled);
+            assert_true(moves[i].landing_m[k] >= 15.6 * IN_M && moves[i].landing_m[k] <= 15.8 * IN_M);
+            assert_true(l->return_s <= a3->return_s + 1e-9);
+        }
+}
+
+/* The bisection against the exhaustive scan: the diaphragm's +200 lb step, every open time 0..5 s on the
+ * 10 ms grid; the landing never falls as the fill lengthens, and none lands nearer the target than the
+ * searched one. */
+static void test_limit_search_is_the_scan(void **state)
+{
+    (void)state;
+    size_t i = 0;
+    while (i < count && strcmp(suite[i].name, "thesis-900lb-diaphragm") != 0)
+        i++;
+    assert_true(i < count);
+    static plant_config cfg;
+    char err[256];
+    assert_int_equal(ctlbench_config(&suite[i], 3, CONFIG_DIR, &cfg, err, sizeof err), 0);
+    const ctlbench_limit_moves *mv = &moves[i];
+    double best = INFINITY, prev = -INFINITY, searched = NAN;
+    long best_k = -1;
+    for (long k = 0; k <= 500; k++) {
+        double h;
+        assert_int_equal(ctlbench_limit_landing(&suite[i], &cfg, mv, 1, k, &h, err, sizeof err), 0);
+        assert_true(h >= prev - 1e-6);
+        prev = h;
+        if (fabs(h - mv->target_m) < best)
+            best = fabs(h - mv->target_m), best_k = k;
+        if (k == mv->target_ticks[0])
+            searched = fabs(h - mv->target_m);
+    }
+    printf("scan: nearest the target after %.2f s (%.4f in off); search: %.2f s\n", best_k * 0.01, best / IN_M,
+           mv->target_ticks[0] * 0.01);
+    assert_true(mv->target_ticks[0] > 0 && mv->target_ticks[0] <= 500);
+    assert_true(searched <= best + 1e-12);
+}
+
+/* The perturbed family: every rig's INI file passes the config loader, its values are the thesis
+ * rig's times the drawn factors, and the factors lie in the issue's ranges. */
+static void test_family_rigs_load_as_drawn(void **state)
+{
+    (void)state;
+    static plant_config base, rig;
+    char err[512], dir[] = "/tmp/leveler-family-XXXXXX", path[600];
+    assert_non_null(mkdtemp(dir));
+    assert_int_equal(plant_config_load(CONFIG_DIR "/" CTLBENCH_FAMILY_BASE, &base, err, sizeof err), 0);
+    for (unsigned i = 0; i < 24; i++) {
+        ctlbench_rig r;
+        ctlbench_family_draw(19u, i, &r);
+        assert_int_equal(ctlbench_family_write(&r, dir, CONFIG_DIR, err, sizeof err), 0);
+        snprintf(path, sizeof path, "%s/%s", dir, r.file);
+        if (plant_config_load(path, &rig, err, sizeof err) != 0)
+            fail_msg("%s", err);
+        const plant_params *b = &base.plant, *p = &rig.plant;
+        assert_true(r.spring_orifice >= 0.75 && r.spring_orifice <= 1.25 && r.vent_cd >= 0.75 && r.vent_cd <= 1.25);
+        assert_true(r.damping_up >= 0.5 && r.damping_up <= 2.0 && r.charge >= 0.9 && r.charge <= 1.1);
+        assert_true(fabs(p->spring_volume0_m3 / b->spring_volume0_m3 - r.spring_volume) < 1e-6);
+        assert_true(fabs(p->vent_valve_cd / b->vent_valve_cd - r.vent_cd) < 1e-4);
+        assert_true(fabs(p->compressor_capacity_m3_per_rad / b->compressor_capacity_m3_per_rad - r.displacement) < 1e-6);
+        assert_true(fabs((p->acc_charge_pa - p->ambient_pa) / (b->acc_charge_pa - b->ambient_pa) - r.charge) < 1e-6);
+        for (int k = 0; k < CTLBENCH_FAMILY_BANDS; k++) {
+            assert_true(r.gap_psi[k] >= 8.0 && r.gap_psi[k] <= 14.0 && fabs(r.up_shift_psi[k]) <= 5.0);
+            assert_true(fabs(p->bands[k].down_offset_pa / PLANT_PA_PER_PSI - r.gap_psi[k]) < 1e-3);
+            assert_true(fabs((p->bands[k].up_intercept_pag - b->bands[k].up_intercept_pag) / PLANT_PA_PER_PSI -
+                             r.up_shift_psi[k]) < 1e-3);
+        }
+        assert_int_equal(remove(path), 0);
+    }
+    assert_int_equal(rmdir(dir), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -150,6 +243,9 @@ int main(void)
         cmocka_unit_test(test_diaphragm_settles_where_algorithm2_cycles),
         cmocka_unit_test(test_rest_with_noise),
         cmocka_unit_test(test_learnt_lines_match_the_plant),
+        cmocka_unit_test(test_limit_bounds_algorithm3),
+        cmocka_unit_test(test_limit_search_is_the_scan),
+        cmocka_unit_test(test_family_rigs_load_as_drawn),
     };
     return cmocka_run_group_tests(tests, run_suite, done);
 }

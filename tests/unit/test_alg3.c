@@ -582,13 +582,15 @@ static void test_close_rule_against_double(void **state)
         int32_t rate = RND(-80000, 80000);
         int32_t p2 = RND(300000, 900000);
         int32_t line = RND(0, 3) == 0 ? 0 : RND(300000, 900000);
-        bool got = leveler_alg3_close_now(&set, up, h, rate, p2, line);
+        bool sure = RND(0, 1) != 0;
+        bool got = leveler_alg3_close_now(&set, up, h, rate, p2, line, sure);
         double along = up ? rate : -rate;
         double coast = up ? set.alg3_coast_up_ms : set.alg3_coast_down_ms;
         double k = up ? set.alg3_coast_k_up_pa_per_mm : set.alg3_coast_k_down_pa_per_mm;
         double by_rate = along > LEVELER_ALG3_STILL_UM_S ? h + 1.25 * rate * coast / 1000.0 : h;
         double excess = up ? (double)p2 - line : (double)line - p2;
-        double by_line = (line != 0 && excess > 0) ? h + (up ? 1.0 : -1.0) * 1.25 * excess * 1000.0 / k : h;
+        double stretch = sure ? 1.0 : 1.25; /* a line learnt in this move is used as it is */
+        double by_line = (line != 0 && excess > 0) ? h + (up ? 1.0 : -1.0) * stretch * excess * 1000.0 / k : h;
         bool want = up ? (h >= TARGET_UM || h > UPPER_UM || by_rate >= TARGET_UM || by_line >= TARGET_UM)
                        : (h <= TARGET_UM || h < LOWER_UM || by_rate <= TARGET_UM || by_line <= TARGET_UM);
         if (got != want) {

@@ -193,18 +193,20 @@ int32_t leveler_alg3_line_estimate(const leveler_alg3 *a, const leveler_settings
 
 /*
  * The early-close rule of a fill (up) or vent, pure: true when the platform is
- * at the target or through the band, or when either predicted rest, with its
- * travel stretched by EARLY_NUM/EARLY_DEN, reaches the target:
+ * at the target or through the band, or when either predicted rest reaches
+ * the target:
  *   by rate: h + rate * coast_ms / 1000 (only while moving the move's way
- *            faster than STILL);
+ *            faster than STILL), its travel stretched by EARLY_NUM/EARLY_DEN;
  *   by line: h +- (excess of P2 over line_pa, or under it) * 1000 / coast_k
- *            (line_pa 0 = unknown).
+ *            (line_pa 0 = unknown), stretched the same unless line_sure (the
+ *            line was learnt at the break-away of this very move: the coast
+ *            model is used as it is, issue 19).
  * Fixed point: int64 intermediates, one rounding per division (<= 0.5 um);
  * the double reference test bounds the disagreement to within that of a
  * threshold.
  */
 bool leveler_alg3_close_now(const leveler_settings *set, bool up, int32_t h, int32_t rate_um_s, int32_t p_spring_pa,
-                            int32_t line_pa);
+                            int32_t line_pa, bool line_sure);
 
 /* Predicted rest height (um) if the valves closed now: height + rate * coast. */
 int32_t leveler_alg3_predict_um(int32_t height_um, int32_t rate_um_s, uint16_t coast_ms);

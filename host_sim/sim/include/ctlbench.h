@@ -74,6 +74,28 @@ size_t ctlbench_suite(bool short_suite, ctlbench_scenario *out, size_t cap);
 int ctlbench_run(const ctlbench_scenario *sc, int algorithm, const char *configs_dir, const char *log_path,
                  runlog_row *rows, size_t rows_cap, ctlbench_metrics *m, char *err, size_t err_len);
 
+/* The 900 lb thesis steps (+200 lb at 5 s, removed at 35 s), then rest_s of
+ * rest scored from 60 s after the removal, with `noise` counts of sensor noise. */
+void ctlbench_thesis_rest(ctlbench_scenario *sc, const char *name, const char *config_file, double noise,
+                          uint32_t seed, double rest_s);
+
+/* The scenario's config as the runs use it: loaded from configs_dir, the
+ * scenario's noise, and for algorithms 1 and 2 (and the limit, 0) no chatter
+ * fault. 0 or -1 with the loader's message. */
+int ctlbench_config(const ctlbench_scenario *sc, int algorithm, const char *configs_dir, plant_config *cfg,
+                    char *err, size_t err_len);
+
+/* sim_run with an optional run log at log_path (so->log is ignored). */
+int ctlbench_simulate(const ctlbench_scenario *sc, const sim_options *so, const char *log_path, sim_result *res,
+                      char *err, size_t err_len);
+
+/* The figures of a finished run (its rows from t = 0) into m. */
+void ctlbench_score(const ctlbench_scenario *sc, const plant_config *cfg, const runlog_row *rows, const sim_result *res,
+                    int algorithm, ctlbench_metrics *m);
+
+/* The figures over the steps (median, worst, unsettled, overshoot, switchings per step) from m->step[]. */
+void ctlbench_aggregate(ctlbench_metrics *m);
+
 /* Rows the longest scenario of a suite needs. */
 size_t ctlbench_rows_needed(const ctlbench_scenario *sc, size_t count);
 
