@@ -77,14 +77,6 @@ static void valve_inputs(plant_fx *f, const double *q, plant_inputs *eff)
     eff->vent_valve = delayed_valve(f, q, 1, eff->vent_valve);
 }
 
-/* Below this critical pressure ratio the valve keeps the config's eq. 8 flow: an
- * ISO 6358 valve with b near 0 is choked at any ratio a rig sees, a different
- * valve altogether, and the jump from eq. 8 to it at b = 0+ left the nominal
- * flow out of every fit's reach (a rig with eq. 8 valves and late openings was
- * fitted at b = 0.55 with doubled delays). So b in [0, B_MIN) is eq. 8, which a
- * fit can start in and stay in (effects.json: fit range from 0). */
-#define VALVE_B_MIN 0.05
-
 static void valve_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
 {
     const plant *pl = &f->pl;
@@ -92,7 +84,7 @@ static void valve_rhs(const plant_fx *f, const double *q, const double *x, doubl
     double m_s = fl->spring_valve, m_v = fl->vent_valve;
     /* The discharge coefficients stay the config's: rescaling one is
      * calibration (calibrate.py), not a valve effect. */
-    if (q[2] >= VALVE_B_MIN) {
+    if (q[2] > 0.0) {
         double a = pl->spring_valve_area_m2, av = p->vent_valve_cd * pl->vent_valve_area_m2;
         m_s = pl->in.spring_valve ? plant_fx_two_way(pl, p->spring_valve_cd_in * a, p->spring_valve_cd_out * a,
                                                      x[PLANT_X_P1], x[PLANT_X_P2], q[2])
