@@ -1,0 +1,129 @@
+"""Runs a sweep's points: on dask.distributed, or serially in this process.
+
+Dask does the distribution: one future per point (its key is the point's id,
+so a point is never submitted twice), ``retries=`` for a task that raised
+(leveler-sim crashed), the scheduler's own rescheduling when a worker dies
+(a task on a lost worker runs again elsewhere; a task that kills workers
+``distributed.scheduler.allowed-failures`` times is given up as KilledWorker).
+Results come back to this process in the order they finish; only this process
+writes the table (leveler.sweep.table), so a task run twice cannot write a
+row twice.
+
+``--scheduler ADDRESS`` runs on an existing cluster: its workers need the same
+leveler (installed, or the checkout on the same path) and leveler-sim, and
+the study's base configs and schedules at the same paths.
+"""
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import logging
+import os
+import sys
+import time
+
+from . import point as point_mod
+
+
+@dataclasses.dataclass
+class Stats:
+    """What a sweep took: for the summary line and make bench."""
+    done: int = 0
+    failed: int = 0
+    wall_s: float = 0.0          # the sweep, submit to last result
+    task_wall_s: float = 0.0     # summed over the tasks (each on one core)
+    simulated_s: float = 0.0     # summed simulated time
+    cores: int = 1
+
+
+class Progress:
+    """One line on stderr: done/total, rate, time left (redrawn on a terminal,
+    about every 10 % otherwise)."""
+
+    def __init__(self, total, quiet=False, stream=sys.stderr):
+        self.total, self.quiet, self.stream = total, quiet, stream
+        self.done, self.start, self.last = 0, time.monotonic(), -1
+        self.tty = stream.isatty()
+
+    def step(self, n=1):
+        self.done += n
+        if self.quiet or self.total == 0:
+            return
+        tenth = 10 * self.done // self.total
+        if not self.tty and tenth == self.last and self.done != self.total:
+            return
+        self.last = tenth
+        elapsed = time.monotonic() - self.start
+        rate = self.done / elapsed if elapsed > 0 else 0.0
+        left = (self.total - self.done) / rate if rate > 0 else float("nan")
+        line = f"leveler-sweep: {self.done}/{self.total} points, {rate:.1f} points/s, {left:.0f} s left"
+        self.stream.write(("\r" + line + " " * 4) if self.tty else line + "\n")
+        if self.tty and self.done == self.total:
+            self.stream.write("\n")
+        self.stream.flush()
+
+
+def _account(stats, result):
+    stats.done += 1
+    stats.task_wall_s += result["wall_s"]
+    stats.simulated_s += result["simulated_s"]
+
+
+def run_serial(points, names, on_row, progress):
+    """Every point in this process, in order (the reference a Dask run must equal)."""
+    stats, start = Stats(), time.monotonic()
+    for p in points:
+        result = point_mod.run(p, names)
+        _account(stats, result)
+        on_row(result["row"])
+        progress.step()
+    stats.wall_s = time.monotonic() - start
+    return stats, []
+
+
+@contextlib.contextmanager
+def client(scheduler=None, workers=None, dashboard=":8787"):
+    """A dask.distributed Client: on ``scheduler`` if given, else on a
+    LocalCluster of ``workers`` single-threaded worker processes (default:
+    one per core)."""
+    from dask.distributed import Client, LocalCluster
+    if scheduler:
+        with Client(scheduler) as c:
+            yield c
+        return
+    n = workers or os.cpu_count() or 1
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
+                      silence_logs=logging.ERROR) as cluster, Client(cluster) as c:
+        yield c
+
+
+def cores(c):
+    """Threads over the cluster's workers (each task uses one core)."""
+    return sum(w.get("nthreads", 1) for w in c.scheduler_info()["workers"].values()) or 1
+
+
+def run_dask(c, points, names, on_row, progress, retries=2):
+    """The points as Dask futures; rows handed to ``on_row`` as they finish.
+    Returns (stats, failures): failures are (point, exception) after the retries."""
+    from dask.distributed import as_completed
+    stats, start = Stats(cores=cores(c)), time.monotonic()
+    futures = {c.submit(point_mod.run, p, names, key=f"leveler-sweep-{p.point_id}", retries=retries): p
+               for p in points}
+    failures = []
+    try:
+        for fut in as_completed(list(futures)):
+            try:
+                result = fut.result()
+            except Exception as e:          # after the retries; KilledWorker too
+                failures.append((futures[fut], e))
+                stats.failed += 1
+            else:
+                _account(stats, result)
+                on_row(result["row"])
+            fut.release()
+            progress.step()
+    except BaseException:
+        c.cancel(list(futures))
+        raise
+    stats.wall_s = time.monotonic() - start
+    return stats, failures
