@@ -42,6 +42,10 @@ LABELS = {   # for plots: (label, unit, factor from SI)
     "switchings": ("switchings", "", 1.0),
     "lowest_height_m": ("lowest height after the step", "mm", 1e3),
     "highest_height_m": ("highest height after the removal", "mm", 1e3),
+    "time_stuck_bottom_s": ("time stuck at the bottom", "s", 1.0),
+    "time_stuck_top_s": ("time stuck at the top", "s", 1.0),
+    "p2_breakaway_pa": ("P2 at break-away", "kPa abs", 1e-3),
+    "p2_start_down_pa": ("P2 when it starts down", "kPa abs", 1e-3),
     "vent_open_s": ("vent open", "s", 1.0),
     "outside_band_s": ("time outside the band", "s", 1.0),
 }

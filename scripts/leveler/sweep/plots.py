@@ -1,5 +1,6 @@
-"""Plots a person reads at a glance: for each of return time, overshoot, air
-used (compressor on-time) and switchings, a heat map over two swept keys (one
+"""Plots a person reads at a glance: for each figure of the study's [plot]
+figures (by default return time, overshoot, air used as the compressor's
+on-time, and switchings), a heat map over two swept keys (one
 panel per combination of the other dimensions: config, scenario, algorithm,
 other keys, on one colour scale), or lines over one swept key.
 """
@@ -10,8 +11,6 @@ import math
 import os
 
 from . import figures
-
-PLOTTED = ("time_return_after_step_s", "overshoot_m", "compressor_on_s", "switchings")
 
 
 def _facets(rows, dims):
@@ -105,7 +104,7 @@ def plot_all(study, rows, out_dir):
         return []
     dims = other_dims(study, rows, axes)
     written = []
-    for name in (n for n in PLOTTED if n in study.figures):
+    for name in study.plot_figures:
         path = os.path.join(out_dir, f"{'heatmap' if len(axes) == 2 else 'lines'}-{name}.png")
         if len(axes) == 2:
             heatmap(rows, name, axes[0], axes[1], dims, path)

@@ -12,9 +12,10 @@
     "accumulator.charge_psig" = { from = 90, to = 130, step = 10 }
     "accumulator.volume_in3" = [25, 50, 100]
 
-    [plot]                                             # optional: the heat map's axes
+    [plot]                                             # optional: the heat map's axes, the figures
     x = "accumulator.charge_psig"
     y = "accumulator.volume_in3"
+    figures = ["time_return_after_step_s", "overshoot_m", "compressor_on_s", "switchings"]
 
 A point is one combination of base config, scenario, algorithm and one value
 of every varied key; its config is an INI that includes the base and sets the
@@ -36,6 +37,7 @@ from .. import config as config_mod
 from . import figures
 
 _KEY = re.compile(r"^[a-z][a-z0-9_]*(\.[0-9]+)?\.[a-z][a-z0-9_]*$")
+PLOTTED = ("time_return_after_step_s", "overshoot_m", "compressor_on_s", "switchings")   # by default
 _STUDY_KEYS = {"name", "title", "configs", "algorithms", "scenarios", "figures", "end_s"}
 
 
@@ -78,6 +80,7 @@ class Study:
     figures: List[str]
     end_s: Optional[float]
     plot_axes: List[str]
+    plot_figures: List[str]
 
     @property
     def keys(self):
@@ -206,11 +209,15 @@ def load(path) -> Study:
     if bad:
         raise StudyError(f"{path}: [study] figures: {bad[0]!r} is not one of {', '.join(figures.NAMES)}")
     vary = [(k, _values(k, v, f"{path}: [vary] {k}")) for k, v in doc.get("vary", {}).items()]
-    axes = [doc.get("plot", {}).get(a) for a in ("x", "y") if doc.get("plot", {}).get(a)]
+    plot = doc.get("plot", {})
+    axes = [plot[a] for a in ("x", "y") if plot.get(a)]
     if any(a not in dict(vary) for a in axes):
         raise StudyError(f"{path}: [plot] names a key that is not in [vary]")
+    plotted = plot.get("figures", [f for f in PLOTTED if f in names])
+    if any(f not in names or f not in figures.LABELS for f in plotted):
+        raise StudyError(f"{path}: [plot] figures: each one of [study] figures and of {', '.join(figures.LABELS)}")
     end = s.get("end_s")
     return Study(os.path.abspath(path), str(s.get("name", os.path.splitext(os.path.basename(path))[0])),
                  _configs(_list(s, "configs", path, None), here, f"{path}: [study] configs"),
                  _scenarios(_list(s, "scenarios", path, ["config"]), here, f"{path}: [study] scenarios"),
-                 algorithms, vary, names, None if end is None else float(end), axes)
+                 algorithms, vary, names, None if end is None else float(end), axes, plotted)
