@@ -34,6 +34,7 @@ class Stats:
     task_wall_s: float = 0.0     # summed over the tasks (each on one core)
     simulated_s: float = 0.0     # summed simulated time
     cores: int = 1
+    stages_s: dict = dataclasses.field(default_factory=dict)   # summed per stage (point.run)
 
 
 class Progress:
@@ -67,6 +68,8 @@ def _account(stats, result):
     stats.done += 1
     stats.task_wall_s += result["wall_s"]
     stats.simulated_s += result["simulated_s"]
+    for stage, seconds in result.get("stages_s", {}).items():
+        stats.stages_s[stage] = stats.stages_s.get(stage, 0.0) + seconds
 
 
 def run_serial(points, names, on_row, progress):

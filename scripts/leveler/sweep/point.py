@@ -42,10 +42,15 @@ def _row(point, names):
 
 
 def run(point, names=figures.NAMES):
-    """{"row": the table row, "wall_s": time taken, "simulated_s": the run's length}.
+    """{"row": the table row, "wall_s": time taken, "simulated_s": the run's length,
+    "stages_s": where the time went (resolve, simulate, read, measure)}.
     A config the loader refuses gives a row with its message in "error"."""
-    start = time.perf_counter()
-    row, simulated = _row(point, names), 0.0
+    clock = [time.perf_counter()]
+    stages, simulated, row = {}, 0.0, _row(point, names)
+
+    def lap(stage):
+        clock.append(time.perf_counter())
+        stages[stage] = clock[-1] - clock[-2]
     with tempfile.TemporaryDirectory(prefix="leveler-sweep-") as tmp:
         ini, log_path = os.path.join(tmp, f"{point.point_id}.ini"), os.path.join(tmp, "run.csv")
         with open(ini, "w", encoding="utf-8") as fh:
@@ -54,16 +59,21 @@ def run(point, names=figures.NAMES):
             cfg = config_mod.load(ini)
         except config_mod.ConfigError as e:
             row["error"] = str(e).replace(ini, f"point {point.point_id}")
-            return {"row": row, "wall_s": time.perf_counter() - start, "simulated_s": 0.0}
-        row["config_hash"] = study.resolved_hash(cfg.values)[:16]
-        p = subprocess.run(_command(point, ini, log_path), capture_output=True, text=True)
-        if p.returncode == 2:
-            row["error"] = p.stderr.strip().replace(ini, f"point {point.point_id}")
-        elif p.returncode != 0:
-            raise SimulationFailed(f"point {point.point_id}: leveler-sim exit {p.returncode}: {p.stderr.strip()}")
-        else:
-            log = runlog.read(log_path)
-            row["version"] = log.meta.get("version")
-            row.update(figures.measure(log, cfg.band_lower_m, cfg.band_upper_m, names))
-            simulated = float(log.t_s[-1])
-    return {"row": row, "wall_s": time.perf_counter() - start, "simulated_s": simulated}
+            cfg = None
+        lap("resolve")
+        if cfg is not None:
+            row["config_hash"] = study.resolved_hash(cfg.values)[:16]
+            p = subprocess.run(_command(point, ini, log_path), capture_output=True, text=True)
+            lap("simulate")
+            if p.returncode == 2:
+                row["error"] = p.stderr.strip().replace(ini, f"point {point.point_id}")
+            elif p.returncode != 0:
+                raise SimulationFailed(f"point {point.point_id}: leveler-sim exit {p.returncode}: {p.stderr.strip()}")
+            else:
+                log = runlog.read(log_path)
+                lap("read")
+                row["version"] = log.meta.get("version")
+                row.update(figures.measure(log, cfg.band_lower_m, cfg.band_upper_m, names))
+                simulated = float(log.t_s[-1])
+                lap("measure")
+    return {"row": row, "wall_s": time.perf_counter() - clock[0], "simulated_s": simulated, "stages_s": stages}
