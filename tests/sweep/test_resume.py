@@ -5,7 +5,7 @@ import signal
 
 from sweeprun import rows, run, start, wait_rows, write_study
 
-POINTS = 24
+POINTS = 16
 
 
 def _interrupt(study, out, sig, n):
@@ -17,14 +17,14 @@ def _interrupt(study, out, sig, n):
 
 
 def test_killed_sweep_resumed_skips_the_done_points(tmp_path):
-    study = write_study(tmp_path, charges=[100, 110, 120], volumes=[25, 50, 75, 100], end_s=150)
+    study = write_study(tmp_path, charges=[100, 120], volumes=[25, 50, 75, 100], end_s=150)
     out = tmp_path / "out"
     code, _ = _interrupt(study, out, signal.SIGKILL, 5)
     assert code == -signal.SIGKILL
     done = {r["point_id"]: r for r in rows(out)}
     assert 5 <= len(done) < POINTS
     with open(out / "sweep.csv", "ab") as fh:      # a crash in the middle of a line
-        fh.write(b"23,0123456789abcdef,thesis-900lb-t")
+        fh.write(b"15,0123456789abcdef,thesis-900lb-t")
 
     p = run(study, out, "--serial")
     todo = POINTS - len(done)

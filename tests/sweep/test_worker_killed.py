@@ -9,7 +9,7 @@ from dask.distributed import Client, LocalCluster
 
 from sweeprun import rows, run, start, wait_rows, write_study
 
-POINTS = 24
+POINTS = 16
 
 
 def _kill_a_busy_worker(c):
@@ -25,7 +25,7 @@ def _kill_a_busy_worker(c):
 
 def test_a_worker_killed_mid_sweep_every_point_once(tmp_path):
     # 150 s runs: each point takes about 0.2 s, the kill lands mid-sweep
-    study = write_study(tmp_path, charges=[100, 110, 120], volumes=[25, 50, 75, 100], end_s=150)
+    study = write_study(tmp_path, charges=[100, 120], volumes=[25, 50, 75, 100], end_s=150)
     out = tmp_path / "dask"
     with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=":0",
                       silence_logs=logging.CRITICAL) as cluster, Client(cluster) as c:

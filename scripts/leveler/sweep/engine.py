@@ -105,8 +105,9 @@ def cores(c):
     return sum(w.get("nthreads", 1) for w in c.scheduler_info()["workers"].values()) or 1
 
 
-def run_dask(c, points, names, on_row, progress, retries=2):
-    """The points as Dask futures; rows handed to ``on_row`` as they finish.
+def run_dask(c, points, names, on_rows, progress, retries=2):
+    """The points as Dask futures; the rows handed to ``on_rows(*rows)`` as they
+    finish (those that finished together in one call: one synced table write).
     Returns (stats, failures): failures are (point, exception) after the retries."""
     from dask.distributed import as_completed
     stats, start = Stats(cores=cores(c)), time.monotonic()
@@ -114,17 +115,20 @@ def run_dask(c, points, names, on_row, progress, retries=2):
                for p in points}
     failures = []
     try:
-        for fut in as_completed(list(futures)):
-            try:
-                result = fut.result()
-            except Exception as e:          # after the retries; KilledWorker too
-                failures.append((futures[fut], e))
-                stats.failed += 1
-            else:
-                _account(stats, result)
-                on_row(result["row"])
-            fut.release()
-            progress.step()
+        for batch in as_completed(list(futures)).batches():   # every result in hand: one table write
+            rows = []
+            for fut in batch:
+                try:
+                    result = fut.result()
+                except Exception as e:          # after the retries; KilledWorker too
+                    failures.append((futures[fut], e))
+                    stats.failed += 1
+                else:
+                    _account(stats, result)
+                    rows.append(result["row"])
+                fut.release()
+            on_rows(*rows)
+            progress.step(len(batch))
     except BaseException:
         c.cancel(list(futures))
         raise

@@ -82,18 +82,25 @@ class Table:
             self.rows[row["point_id"]] = row
         return set(self.rows)
 
-    def append(self, row):
-        """Adds a finished point: one line, synced. A point already there is not written again."""
-        if row["point_id"] in self.rows:
-            return False
+    def append(self, *rows):
+        """Adds finished points: whole lines, one write, synced. A point already
+        there is not written again. Returns how many were added."""
+        new = {}
+        for row in rows:
+            if row["point_id"] not in self.rows:
+                new[row["point_id"]] = row
+        if not new:
+            return 0
         buf = io.StringIO()
-        csv.writer(buf, lineterminator="\n").writerow([_cell(row.get(n), k) for n, k in self.cols])
+        w = csv.writer(buf, lineterminator="\n")
+        for row in new.values():
+            w.writerow([_cell(row.get(n), k) for n, k in self.cols])
         with open(self.csv_path, "a", encoding="utf-8", newline="") as fh:
             fh.write(buf.getvalue())
             fh.flush()
             os.fsync(fh.fileno())
-        self.rows[row["point_id"]] = row
-        return True
+        self.rows.update(new)
+        return len(new)
 
     def sorted_rows(self):
         return sorted(self.rows.values(), key=lambda r: r["point"])
