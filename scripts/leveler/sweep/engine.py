@@ -41,8 +41,8 @@ class Progress:
     """One line on stderr: done/total, rate, time left (redrawn on a terminal,
     about every 10 % otherwise)."""
 
-    def __init__(self, total, quiet=False, stream=sys.stderr):
-        self.total, self.quiet, self.stream = total, quiet, stream
+    def __init__(self, total, quiet=False, stream=sys.stderr, prog="leveler-sweep", unit="points"):
+        self.total, self.quiet, self.stream, self.prog, self.unit = total, quiet, stream, prog, unit
         self.done, self.start, self.last = 0, time.monotonic(), -1
         self.tty = stream.isatty()
 
@@ -57,7 +57,7 @@ class Progress:
         elapsed = time.monotonic() - self.start
         rate = self.done / elapsed if elapsed > 0 else 0.0
         left = (self.total - self.done) / rate if rate > 0 else float("nan")
-        line = f"leveler-sweep: {self.done}/{self.total} points, {rate:.1f} points/s, {left:.0f} s left"
+        line = f"{self.prog}: {self.done}/{self.total} {self.unit}, {rate:.2f} {self.unit}/s, {left:.0f} s left"
         self.stream.write(("\r" + line + " " * 4) if self.tty else line + "\n")
         if self.tty and self.done == self.total:
             self.stream.write("\n")
