@@ -1,5 +1,6 @@
 """Issue 20: a small sweep on a 2-worker LocalCluster gives the same table as
-the same sweep run serially in one process, bit for bit (CSV and Parquet)."""
+the same sweep run serially in one process, bit for bit (CSV and Parquet);
+so does the same with several points per task (--batch)."""
 import pyarrow.parquet as pq
 
 from sweeprun import rows, run, write_study
@@ -18,6 +19,8 @@ def test_two_worker_local_cluster_gives_the_serial_table_bit_for_bit(tmp_path):
     ta, tb = pq.read_table(tmp_path / "serial" / "sweep.parquet"), pq.read_table(tmp_path / "dask" / "sweep.parquet")
     assert ta.equals(tb, check_metadata=True)
     assert (tmp_path / "serial" / "sweep.parquet").read_bytes() == (tmp_path / "dask" / "sweep.parquet").read_bytes()
+    run(study, tmp_path / "batched", "--workers", "2", "--dashboard", ":0", "--batch", "5")   # 3 tasks of 5, 5, 2
+    assert (tmp_path / "batched" / "sweep.csv").read_bytes() == a
 
     table = rows(tmp_path / "dask")
     assert [int(r["point"]) for r in table] == list(range(12))

@@ -21,6 +21,8 @@ from .. import cli as leveler_cli
 from .. import paths, runlog
 from . import engine, point as point_mod, study as study_mod, table as table_mod
 
+BATCH = 10     # points per task in the last run
+
 
 def sim_alone(p, repeats):
     """leveler-sim as the sweep runs it (a process writing the log): median wall per run."""
@@ -38,45 +40,59 @@ def sim_alone(p, repeats):
     return statistics.median(walls), simulated
 
 
-def _sweep(points, names, workers):
-    """One sweep into a fresh table; workers None: serial in this process."""
+def _sweep(points, names, workers, batch=1):
+    """One sweep into a fresh table; workers None: serial in this process.
+    Returns (stats, cluster start-up s, Dask's cost per task s)."""
     with tempfile.TemporaryDirectory(prefix="leveler-sweep-bench-") as tmp:
         table = table_mod.Table(tmp, [("point", "int"), ("point_id", "str")])
         table.open()
         progress = engine.Progress(len(points), quiet=True)
         if workers is None:
-            return engine.run_serial(points, names, table.append, progress)[0], 0.0
+            return engine.run_serial(points, names, table.append, progress)[0], 0.0, 0.0
         t0 = time.monotonic()
         with engine.client(workers=workers, dashboard=":0") as c:
             c.run(lambda: __import__("leveler.sweep.point"))   # imports done before the clock starts
             startup = time.monotonic() - t0
-            stats, failures = engine.run_dask(c, points, names, table.append, progress)
+            stats, failures = engine.run_dask(c, points, names, table.append, progress, batch=batch)
+            overhead = task_overhead(c)
         if failures:
             raise RuntimeError(f"{len(failures)} points failed: {failures[0][1]}")
-        return stats, startup
+        return stats, startup, overhead
 
 
-def _line(label, stats):
-    per_point = stats.task_wall_s / stats.done
-    rate = stats.simulated_s / stats.wall_s / stats.cores
-    return (f"{label:<28} {stats.done:>6} {stats.cores:>5} {stats.wall_s:>8.2f} {per_point:>9.3f} "
-            f"{rate:>12.0f}"), rate
+def _nothing(i):
+    return i
+
+
+def task_overhead(c, n=2000):
+    """Wall per task of n tasks that do nothing (submitted as the sweep submits
+    points, results gathered as they finish): the engine's own cost per task."""
+    from dask.distributed import as_completed
+    t0 = time.monotonic()
+    futures = [c.submit(_nothing, i, key=f"bench-nothing-{i}") for i in range(n)]
+    for batch in as_completed(futures).batches():
+        for f in batch:
+            f.result()
+    return (time.monotonic() - t0) / n
 
 
 def measure(points, names, repeats):
     """Every figure of the bench as a dict (also written as bench.json)."""
     load_before = os.getloadavg()[0]
     sim_wall, simulated = sim_alone(points[0], repeats)
-    serial, _ = _sweep(points, names, None)
-    one, startup1 = _sweep(points, names, 1)
-    two, startup2 = _sweep(points, names, 2)
+    serial, _, _ = _sweep(points, names, None)
+    one, startup1, overhead1 = _sweep(points, names, 1)
+    two, startup2, overhead2 = _sweep(points, names, 2)
+    two_b, _, _ = _sweep(points, names, 2, BATCH)
     return {"points": len(points), "simulated_s_per_point": simulated,
             "sim_alone_wall_s": sim_wall, "sim_alone_rate": simulated / sim_wall,
             "runs": {name: {"wall_s": s.wall_s, "cores": s.cores, "task_wall_s": s.task_wall_s / s.done,
                             "rate": s.simulated_s / s.wall_s / s.cores,
                             "stages_s": {k: v / s.done for k, v in s.stages_s.items()}}
-                     for name, s in (("serial", serial), ("dask-1", one), ("dask-2", two))},
+                     for name, s in (("serial", serial), ("dask-1", one), ("dask-2", two),
+                                     (f"dask-2-batch{BATCH}", two_b))},
             "cluster_startup_s": {"dask-1": startup1, "dask-2": startup2},
+            "dask_task_overhead_s": {"dask-1": overhead1, "dask-2": overhead2},
             "speedup_1_to_2": one.wall_s / two.wall_s, "cpu_count": os.cpu_count(),
             "load_average_1min": [load_before, os.getloadavg()[0]]}
 
@@ -90,7 +106,7 @@ def report(m):
              f"{m['sim_alone_rate']:.0f} simulated s per wall s (one core)",
              f"{'sweep':<28} {'points':>6} {'cores':>5} {'wall s':>8} {'s/point':>9} {'sim s/wall s/core':>12}"]
     for name, label in (("serial", "serial, in process"), ("dask-1", "Dask LocalCluster, 1 worker"),
-                        ("dask-2", "Dask LocalCluster, 2 workers")):
+                        ("dask-2", "Dask LocalCluster, 2 workers"), (f"dask-2-batch{BATCH}", f"  the same, --batch {BATCH}")):
         r = runs[name]
         lines.append(f"{label:<28} {m['points']:>6} {r['cores']:>5} {r['wall_s']:>8.2f} {r['task_wall_s']:>9.3f} "
                      f"{r['rate']:>12.0f}")
@@ -98,6 +114,9 @@ def report(m):
     lines.append("a point (serial): " + ", ".join(f"{k} {v * 1e3:.1f} ms" for k, v in st.items())
                  + f"; the rest (INI, temp folder, table row) "
                    f"{(runs['serial']['task_wall_s'] - sum(st.values())) * 1e3:.1f} ms")
+    lines.append("Dask's own cost per task (2000 tasks that do nothing): "
+                 f"{m['dask_task_overhead_s']['dask-1'] * 1e3:.2f} ms (1 worker), "
+                 f"{m['dask_task_overhead_s']['dask-2'] * 1e3:.2f} ms (2 workers)")
     lines.append(f"scaling 1 -> 2 workers: {m['speedup_1_to_2']:.2f}x faster "
                  f"({m['speedup_1_to_2'] / 2 * 100:.0f} % of linear); cluster start-up "
                  f"{m['cluster_startup_s']['dask-1']:.1f} s / {m['cluster_startup_s']['dask-2']:.1f} s (not in the walls)")

@@ -35,6 +35,8 @@ def parse_args(argv):
     where.add_argument("--serial", action="store_true", help="no cluster: every point in this process, in order")
     ap.add_argument("--retries", type=int, default=2, metavar="N",
                     help="times Dask runs a failed point again (default 2)")
+    ap.add_argument("--batch", type=int, default=1, metavar="N",
+                    help="points per Dask task (default 1; more for very many short points: docs/scale.md)")
     ap.add_argument("--dashboard", default=":8787", metavar="ADDRESS",
                     help="the local cluster's dashboard address (default :8787; :0 any free port)")
     ap.add_argument("--no-plots", action="store_true", help="the table only")
@@ -42,6 +44,8 @@ def parse_args(argv):
     a = ap.parse_args(argv)
     if a.workers is not None and a.workers < 1:
         ap.error("--workers: at least 1")
+    if a.batch < 1:
+        ap.error("--batch: at least 1")
     return a
 
 
@@ -95,7 +99,7 @@ def execute(a, study, todo, table, say):
     with engine.client(a.scheduler, a.workers, a.dashboard) as c:
         say(f"leveler-sweep: Dask {'cluster ' + a.scheduler if a.scheduler else 'LocalCluster'}, "
             f"{engine.cores(c)} worker threads; dashboard {c.dashboard_link}")
-        return engine.run_dask(c, todo, study.figures, table.append, progress, a.retries)
+        return engine.run_dask(c, todo, study.figures, table.append, progress, a.retries, a.batch)
 
 
 def report(a, study, table, stats, failures, say):

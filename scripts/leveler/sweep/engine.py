@@ -96,7 +96,7 @@ def client(scheduler=None, workers=None, dashboard=":8787"):
         return
     n = workers or os.cpu_count() or 1
     with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
-                      silence_logs=logging.ERROR) as cluster, Client(cluster) as c:
+                      silence_logs=logging.CRITICAL) as cluster, Client(cluster) as c:
         yield c
 
 
@@ -105,30 +105,33 @@ def cores(c):
     return sum(w.get("nthreads", 1) for w in c.scheduler_info()["workers"].values()) or 1
 
 
-def run_dask(c, points, names, on_rows, progress, retries=2):
-    """The points as Dask futures; the rows handed to ``on_rows(*rows)`` as they
-    finish (those that finished together in one call: one synced table write).
-    Returns (stats, failures): failures are (point, exception) after the retries."""
+def run_dask(c, points, names, on_rows, progress, retries=2, batch=1):
+    """The points as Dask futures, ``batch`` points per task; the rows handed to
+    ``on_rows(*rows)`` as they finish (those that finished together in one call:
+    one synced table write). Returns (stats, failures): failures are (point,
+    exception) after the retries."""
     from dask.distributed import as_completed
     stats, start = Stats(cores=cores(c)), time.monotonic()
-    futures = {c.submit(point_mod.run, p, names, key=f"leveler-sweep-{p.point_id}", retries=retries): p
-               for p in points}
+    chunks = [tuple(points[i:i + batch]) for i in range(0, len(points), batch)]
+    futures = {c.submit(point_mod.run_many, ch, names, key=f"leveler-sweep-{ch[0].point_id}-{len(ch)}",
+                        retries=retries): ch for ch in chunks}
     failures = []
     try:
-        for batch in as_completed(list(futures)).batches():   # every result in hand: one table write
+        for done in as_completed(list(futures)).batches():   # every result in hand: one table write
             rows = []
-            for fut in batch:
+            for fut in done:
                 try:
-                    result = fut.result()
+                    results = fut.result()
                 except Exception as e:          # after the retries; KilledWorker too
-                    failures.append((futures[fut], e))
-                    stats.failed += 1
-                else:
+                    failures += [(p, e) for p in futures[fut]]
+                    stats.failed += len(futures[fut])
+                    results = []
+                for result in results:
                     _account(stats, result)
                     rows.append(result["row"])
+                progress.step(len(futures[fut]))
                 fut.release()
             on_rows(*rows)
-            progress.step(len(batch))
     except BaseException:
         c.cancel(list(futures))
         raise

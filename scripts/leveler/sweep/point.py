@@ -77,3 +77,8 @@ def run(point, names=figures.NAMES):
                 simulated = float(log.t_s[-1])
                 lap("measure")
     return {"row": row, "wall_s": time.perf_counter() - clock[0], "simulated_s": simulated, "stages_s": stages}
+
+
+def run_many(points, names=figures.NAMES):
+    """Several points in one task (leveler-sweep --batch): their results in order."""
+    return [run(p, names) for p in points]
