@@ -1,6 +1,5 @@
 """Helpers of the leveler-sweep tests: a study file, the command, the table."""
 import csv
-import os
 import subprocess
 import sys
 import time
@@ -50,7 +49,3 @@ def wait_rows(out, n, proc, timeout=60):
         assert proc.poll() is None, f"the sweep ended before {n} rows: {proc.communicate()[1][-2000:]}"
         time.sleep(0.02)
     raise AssertionError(f"no {n} rows in {path} after {timeout} s")
-
-
-def env_ok():
-    assert os.environ.get("LEVELER_SIM"), "run by CTest (LEVELER_SIM set)"

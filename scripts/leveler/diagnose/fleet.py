@@ -156,7 +156,7 @@ def write_outputs(out, rows, fleet):
 
 
 def parse_args(argv):
-    ap = leveler_cli.parser("leveler-diagnose --fleet", __doc__)
+    ap = leveler_cli.parser("leveler-diagnose", __doc__, exit_extra="1 also: a rig whose diagnosis failed")
     ap.add_argument("--fleet", required=True, metavar="DIR", help="one folder per rig: *.ini, run*.csv, holdout*.csv")
     ap.add_argument("--out", required=True, metavar="DIR", help="fleet.csv, index.html and one folder per rig")
     where = ap.add_mutually_exclusive_group()
