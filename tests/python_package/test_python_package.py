@@ -21,7 +21,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 VERSION = os.environ["LEVELER_VERSION"]
 SIMULATE = Path(__file__).with_name("simulate_900lb.py")
-SCRIPTS = ["leveler-diagnose", "leveler-blindtest", "leveler-diagnose-bench", "leveler-report", "leveler-ctlbench-plot"]
+SCRIPTS = ["leveler-diagnose", "leveler-blindtest", "leveler-diagnose-bench", "leveler-report", "leveler-ctlbench-plot",
+           "leveler-sweep"]   # leveler-sweep --version without the [sweep] extra (dask, pyarrow load when it runs)
 COMPILED = ["leveler/_lib/libleveler_diag.so", "leveler/_lib/libleveler_truth.so",
             "leveler/_lib/libleveler_pil_plant.so", "leveler/_bin/leveler-sim"]
 # the checkout's own build, from CTest; the installed package must find none of it

@@ -9,7 +9,7 @@ import pytest
 
 from leveler import config, runlog
 from leveler.sweep import figures, study
-from sweeprun import CONFIGS, command, run, write_study
+from sweeprun import CONFIGS, command, rows, run, write_study
 
 
 def test_ranges_expand_as_written():
@@ -95,3 +95,13 @@ def test_help_and_version():
     assert p.returncode == 0 and "--scheduler ADDRESS" in p.stdout and "exit codes" in p.stdout
     p = subprocess.run([sys.executable, "-m", "leveler.sweep", "--version"], capture_output=True, text=True)
     assert p.returncode == 0 and p.stdout.startswith("leveler-sweep ")
+
+
+def test_a_later_point_out_of_range_gets_the_loaders_message_and_exit_1(tmp_path):
+    s = write_study(tmp_path, charges=[112, 500], volumes=[50], algorithms=[2])
+    p = subprocess.run(command(s, tmp_path / "out", "--serial"), capture_output=True, text=True, timeout=60)
+    assert p.returncode == 1, p.stderr
+    table = {r["accumulator.charge_psig"]: r for r in rows(tmp_path / "out")}
+    assert table["112"]["error"] == "" and table["112"]["time_return_after_step_s"]
+    assert table["500"]["error"].startswith("point.ini:") and "charge_psig = 500: out of range" in table["500"]["error"]
+    assert table["500"]["time_return_after_step_s"] == "" and "charge_psig = 500: out of range" in p.stderr

@@ -52,13 +52,13 @@ def run(point, names=figures.NAMES):
         clock.append(time.perf_counter())
         stages[stage] = clock[-1] - clock[-2]
     with tempfile.TemporaryDirectory(prefix="leveler-sweep-") as tmp:
-        ini, log_path = os.path.join(tmp, f"{point.point_id}.ini"), os.path.join(tmp, "run.csv")
+        ini, log_path = os.path.join(tmp, "point.ini"), os.path.join(tmp, "run.csv")
         with open(ini, "w", encoding="utf-8") as fh:
             fh.write(point.ini_text())
         try:
             cfg = config_mod.load(ini)
         except config_mod.ConfigError as e:
-            row["error"] = str(e).replace(ini, f"point {point.point_id}")
+            row["error"] = str(e).replace(ini, "point.ini")
             cfg = None
         lap("resolve")
         if cfg is not None:
@@ -66,7 +66,7 @@ def run(point, names=figures.NAMES):
             p = subprocess.run(_command(point, ini, log_path), capture_output=True, text=True)
             lap("simulate")
             if p.returncode == 2:
-                row["error"] = p.stderr.strip().replace(ini, f"point {point.point_id}")
+                row["error"] = p.stderr.strip().replace(ini, "point.ini")
             elif p.returncode != 0:
                 raise SimulationFailed(f"point {point.point_id}: leveler-sim exit {p.returncode}: {p.stderr.strip()}")
             else:
