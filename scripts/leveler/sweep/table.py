@@ -95,11 +95,11 @@ class Table:
         w = csv.writer(buf, lineterminator="\n")
         for row in new.values():
             w.writerow([_cell(row.get(n), k) for n, k in self.cols])
+        self.rows.update(new)       # first: an interrupt during the write leaves them to finish()
         with open(self.csv_path, "a", encoding="utf-8", newline="") as fh:
             fh.write(buf.getvalue())
             fh.flush()
             os.fsync(fh.fileno())
-        self.rows.update(new)
         return len(new)
 
     def sorted_rows(self):
