@@ -105,3 +105,11 @@ def test_a_later_point_out_of_range_gets_the_loaders_message_and_exit_1(tmp_path
     assert table["112"]["error"] == "" and table["112"]["time_return_after_step_s"]
     assert table["500"]["error"].startswith("point.ini:") and "charge_psig = 500: out of range" in table["500"]["error"]
     assert table["500"]["time_return_after_step_s"] == "" and "charge_psig = 500: out of range" in p.stderr
+
+
+def test_shipped_studies_by_name():
+    s = study.load(study.find("appendix-a"))
+    assert len(s.points()) == 6 and s.keys == ["ambient.polytropic_exponent"]
+    assert [len(study.load(study.find(n)).points()) for n in ("accumulator", "accumulator-diaphragm")] == [100, 10]
+    with pytest.raises(study.StudyError, match="known: accumulator, accumulator-diaphragm, appendix-a"):
+        study.find("no-such-study")

@@ -18,7 +18,7 @@ import tempfile
 import time
 
 from .. import cli as leveler_cli
-from .. import paths, runlog
+from .. import runlog
 from . import engine, point as point_mod, study as study_mod, table as table_mod
 
 BATCH = 10     # points per task in the last run
@@ -125,14 +125,14 @@ def report(m):
 
 def main(argv=None):
     ap = leveler_cli.parser("python -m leveler.sweep.bench", __doc__)
-    ap.add_argument("--study", default=paths.data("host_sim/studies/accumulator.toml", "studies/accumulator.toml"),
-                    help="the study whose points are timed (default: the accumulator study)")
+    ap.add_argument("--study", default="accumulator",
+                    help="the study whose points are timed (a file or a shipped study's name; default accumulator)")
     ap.add_argument("--points", type=int, default=60, help="its first N points (default 60)")
     ap.add_argument("--repeats", type=int, default=20, help="runs of leveler-sim alone (default 20)")
     ap.add_argument("--out", metavar="DIR", help="write bench.json here")
     a = ap.parse_args(argv)
     try:
-        s = study_mod.load(a.study)
+        s = study_mod.load(study_mod.find(a.study))
     except study_mod.StudyError as e:
         print(f"leveler-sweep bench: error: {e}", file=sys.stderr)
         return leveler_cli.EXIT_BAD_INPUT

@@ -25,7 +25,9 @@ _OURS = (table_mod.CSV_NAME, table_mod.PARQUET_NAME)
 
 def parse_args(argv):
     ap = leveler_cli.parser("leveler-sweep", __doc__, exit_extra="130 interrupted (run it again to continue)")
-    ap.add_argument("--study", required=True, metavar="FILE", help="the study (TOML, docs/sweep.md)")
+    ap.add_argument("--study", required=True, metavar="FILE",
+                    help="the study (TOML, docs/sweep.md), or the name of a shipped one: accumulator, "
+                         "accumulator-diaphragm, appendix-a (host_sim/studies)")
     ap.add_argument("--out", required=True, metavar="DIR",
                     help="output folder: new, or an earlier output of this study (its points are skipped)")
     where = ap.add_mutually_exclusive_group()
@@ -74,7 +76,7 @@ def check_first(points):
 
 def prepare(a, say):
     """(study, points to run, table) with the table opened and the done points skipped."""
-    study = study_mod.load(a.study)
+    study = study_mod.load(study_mod.find(a.study))
     config_mod.find_sim()
     points = study.points()
     check_out(a.out)

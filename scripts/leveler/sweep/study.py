@@ -34,7 +34,10 @@ import tomllib
 from typing import List, Optional, Tuple
 
 from .. import config as config_mod
+from .. import paths
 from . import figures
+
+STUDY_DIR = paths.data("host_sim/studies", "studies")     # the shipped studies (--study NAME)
 
 _KEY = re.compile(r"^[a-z][a-z0-9_]*(\.[0-9]+)?\.[a-z][a-z0-9_]*$")
 PLOTTED = ("time_return_after_step_s", "overshoot_m", "compressor_on_s", "switchings")   # by default
@@ -185,6 +188,17 @@ def _list(table, key, where, default):
     if not isinstance(v, list) or not v:
         raise StudyError(f"{where}: [study] {key}: give a non-empty list")
     return v
+
+
+def find(name_or_path):
+    """A study file: the path given, else a shipped study's name (host_sim/studies/NAME.toml)."""
+    if os.path.exists(name_or_path) or os.sep in name_or_path or name_or_path.endswith(".toml"):
+        return name_or_path
+    path = os.path.join(STUDY_DIR, name_or_path + ".toml")
+    if not os.path.exists(path):
+        known = sorted(n[:-5] for n in os.listdir(STUDY_DIR) if n.endswith(".toml")) if os.path.isdir(STUDY_DIR) else []
+        raise StudyError(f"--study {name_or_path}: no such file, nor a shipped study (known: {', '.join(known)})")
+    return path
 
 
 def load(path) -> Study:
