@@ -5,7 +5,7 @@
 #                   (the blind test's truths), libleveler_pil_plant.so (the PIL plant)
 #   leveler/_bin/   leveler-sim (the one config loader: leveler-sim --dump-config)
 #   leveler/_data/  the simulator configs, the effect and truth catalogues, the
-#                   register map (registers.json: the mode register's values)
+#                   register map (registers.json: the mode register's values), the sweep studies
 # scripts/leveler/paths.py finds them there. No sanitizers, no tests, no rig
 # host (libmodbus, libgpiod), no CPack, no firmware cross build.
 #
@@ -35,6 +35,9 @@ install(TARGETS leveler_diag leveler_truth leveler_pil_plant LIBRARY DESTINATION
 install(TARGETS leveler-sim RUNTIME DESTINATION leveler/_bin COMPONENT python)
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/host_sim/configs/ DESTINATION leveler/_data/configs
         COMPONENT python FILES_MATCHING PATTERN "*.ini")
+# leveler-sweep's studies (--study NAME); their "../configs/..." paths land on the configs above
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/host_sim/studies/ DESTINATION leveler/_data/studies
+        COMPONENT python FILES_MATCHING PATTERN "*.toml")
 install(FILES ${PROJECT_SOURCE_DIR}/host_sim/plant/effects.json ${PROJECT_SOURCE_DIR}/firmware/regmap/registers.json
         DESTINATION leveler/_data COMPONENT python)
 install(FILES ${PROJECT_SOURCE_DIR}/host_sim/blindtest/truth.json ${PROJECT_SOURCE_DIR}/host_sim/blindtest/truth2.json

@@ -21,7 +21,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 VERSION = os.environ["LEVELER_VERSION"]
 SIMULATE = Path(__file__).with_name("simulate_900lb.py")
-SCRIPTS = ["leveler-diagnose", "leveler-blindtest", "leveler-compare", "leveler-diagnose-bench", "leveler-report", "leveler-ctlbench-plot"]
+SCRIPTS = ["leveler-diagnose", "leveler-blindtest", "leveler-compare", "leveler-diagnose-bench", "leveler-report",
+           "leveler-ctlbench-plot", "leveler-sweep"]   # leveler-sweep --version without the [sweep] extra (dask, pyarrow load when it runs)
 COMPILED = ["leveler/_lib/libleveler_diag.so", "leveler/_lib/libleveler_truth.so",
             "leveler/_lib/libleveler_pil_plant.so", "leveler/_bin/leveler-sim"]
 # the checkout's own build, from CTest; the installed package must find none of it
@@ -76,6 +77,8 @@ def test_wheel_holds_the_compiled_parts_and_the_data(wheel):
         assert path in names, path
     configs = {Path(n).name for n in names if n.startswith("leveler/_data/configs/")}
     assert configs == {p.name for p in (ROOT / "host_sim" / "configs").glob("*.ini")}
+    studies = {Path(n).name for n in names if n.startswith("leveler/_data/studies/")}
+    assert studies == {p.name for p in (ROOT / "host_sim" / "studies").glob("*.toml")}
     assert not [n for n in names if "__pycache__" in n or n.startswith(("build/", "tests/"))]
     meta = zipfile.ZipFile(wheel).read(f"leveler-{VERSION}.dist-info/METADATA").decode()
     assert re.search(rf"^Version: {re.escape(VERSION)}$", meta, re.M)
@@ -101,6 +104,16 @@ def test_console_scripts_help_and_version(installed):
     for script in SCRIPTS:
         v = run([str(bin_dir / script), "--version"], cwd=outside, env=env)
         assert v.stdout.endswith(f" {VERSION}\n"), (script, v.stdout)
+
+
+def test_installed_sweep_study_resolves_on_the_installed_configs(installed):
+    """leveler-sweep's shipped study by name, its base configs resolved by the
+    installed leveler-sim from the installed configs (no dask needed to expand it)."""
+    bin_dir, outside, env = installed
+    code = ("from leveler.sweep import study; s = study.load(study.find('accumulator')); "
+            "print(len(s.points()), s.configs[0][1])")
+    got = run([str(bin_dir / "python"), "-c", code], cwd=outside, env=env).stdout.split()
+    assert got[0] == "100" and "/site-packages/leveler/_data/configs/thesis-900lb-tube.ini" in got[1], got
 
 
 def test_installed_c_plant_simulates_as_the_checkout(installed):

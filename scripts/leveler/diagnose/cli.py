@@ -47,6 +47,8 @@ def parse_args(argv):
     ap.add_argument("--allow-config-mismatch", action="store_true",
                     help="diagnose logs whose '# config:' names another config than --config's own name "
                          "(default: refuse them); the mismatch goes into diagnosis.json and the verdict")
+    ap.add_argument("--fleet", metavar="DIR", help="diagnose every rig of DIR on Dask instead (one folder per rig; "
+                                                   "leveler-diagnose --fleet DIR --help)")
     ap.add_argument("--simulator", default=None, help=argparse.SUPPRESS)   # tests: module:factory
     a = ap.parse_args(argv)
     if a.features is None and (not a.run or not a.holdout):
@@ -55,7 +57,11 @@ def parse_args(argv):
 
 
 def main(argv=None):
-    a = parse_args(sys.argv[1:] if argv is None else argv)
+    argv = sys.argv[1:] if argv is None else argv
+    if any(x == "--fleet" or x.startswith("--fleet=") for x in argv):
+        from .fleet import main as fleet_main      # every rig of a folder, on Dask (fleet.py)
+        return fleet_main(argv)
+    a = parse_args(argv)
     say = (lambda *_: None) if a.quiet else (lambda m: print(m, file=sys.stderr, flush=True))
     try:
         return run(a, say)
