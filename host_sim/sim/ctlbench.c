@@ -60,11 +60,17 @@ void ctlbench_thesis_rest(ctlbench_scenario *sc, const char *name, const char *c
     sc->end_s = sc->rest_to_s;
 }
 
+/* A config's name in scenario names: without the thesis- prefix the suite's own carry. */
+static const char *short_name(const char *config)
+{
+    return strncmp(config, "thesis-", 7) == 0 ? config + 7 : config;
+}
+
 /* The thesis steps then rest_s of rest (the hunting case), seed 100 + noise. */
 static void rest(ctlbench_scenario *sc, const char *config, double noise, double rest_s)
 {
     char name[CTLBENCH_NAME_MAX], file[CTLBENCH_NAME_MAX];
-    snprintf(name, sizeof name, "rest-%s-noise%g", config + strlen("thesis-"), noise);
+    snprintf(name, sizeof name, "rest-%s-noise%g", short_name(config), noise);
     snprintf(file, sizeof file, "%s.ini", config);
     ctlbench_thesis_rest(sc, name, file, noise, 100u + (uint32_t)noise, rest_s);
 }
@@ -84,7 +90,7 @@ static void random_steps(ctlbench_scenario *sc, const char *config, uint32_t see
 {
     memset(sc, 0, sizeof *sc);
     char name[CTLBENCH_NAME_MAX];
-    snprintf(name, sizeof name, "random-%s", config + strlen("thesis-"));
+    snprintf(name, sizeof name, "random-%s", short_name(config));
     name_scenario(sc, name, config);
     sc->kind = CTLBENCH_RANDOM;
     sc->noise_counts = 1.0;
@@ -105,6 +111,18 @@ static void random_steps(ctlbench_scenario *sc, const char *config, uint32_t see
         sc->step_count = i + 1;
     }
     sc->end_s = sc->steps[sc->step_count - 1].t_s + 60.0;
+}
+
+size_t ctlbench_suite_for(const char *config, bool short_suite, ctlbench_scenario *out, size_t cap)
+{
+    size_t n = 0;
+    if (cap < 3)
+        return 0;
+    thesis(&out[n++], config, 900.0);
+    rest(&out[n++], config, 2.0, short_suite ? 120.0 : 600.0);
+    if (!short_suite)
+        random_steps(&out[n++], config, 2026u, 24);
+    return n;
 }
 
 size_t ctlbench_suite(bool short_suite, ctlbench_scenario *out, size_t cap)

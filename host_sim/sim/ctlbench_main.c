@@ -370,11 +370,12 @@ static int plot_all(const char *dir, const char *configs, const scored *s, size_
     return rc == 0 ? 0 : -1;
 }
 
-enum { OPT_OUT = 0x100, OPT_CONFIGS, OPT_SHORT, OPT_NO_PLOTS, OPT_QUIET };
+enum { OPT_OUT = 0x100, OPT_CONFIGS, OPT_CONFIG, OPT_SHORT, OPT_NO_PLOTS, OPT_QUIET };
 
 static const cli_option bench_options[] = {
     {"out", OPT_OUT, "DIR", "logs, one PNG per scenario and scorecard.json (default build/ctlbench)", 0},
     {"configs", OPT_CONFIGS, "DIR", "the INI files (default <source>/host_sim/configs)", 0},
+    {"config", OPT_CONFIG, "FILE", "the suite on this one config instead (a rig of yours: steps, rest, random)", 0},
     {"short", OPT_SHORT, NULL, "the acceptance test's short suite", 0},
     {"no-plots", OPT_NO_PLOTS, NULL, "no logs and no PNGs (figures only)", 0},
     {"quiet", OPT_QUIET, NULL, "no progress lines", 0},
@@ -383,14 +384,14 @@ static const cli_option bench_options[] = {
 
 static const cli_spec bench_cli = {
     .prog = "leveler-ctlbench",
-    .usage = "[--out DIR] [--configs DIR] [--short] [--no-plots] [--quiet]",
+    .usage = "[--out DIR] [--configs DIR | --config FILE] [--short] [--no-plots] [--quiet]",
     .about = "The controller scorecard: algorithms 1, 2 and 3 over the scenario suite (targets missed are\n"
              "reported, not failed).",
     .opts = bench_options,
 };
 
 typedef struct {
-    const char *out, *configs;
+    const char *out, *configs, *config;
     bool short_suite, plots, quiet;
 } bench_args;
 
@@ -400,6 +401,7 @@ static int bench_option(void *user, int key, const char *v)
     switch (key) {
     case OPT_OUT: a->out = v; break;
     case OPT_CONFIGS: a->configs = v; break;
+    case OPT_CONFIG: a->config = v; break;
     case OPT_SHORT: a->short_suite = true; break;
     case OPT_NO_PLOTS: a->plots = false; break;
     case OPT_QUIET: a->quiet = true; break;
@@ -440,6 +442,25 @@ static int run_all(const char *configs, const char *out, bool plots, bool quiet,
     return rc;
 }
 
+/* --config FILE: its folder (the configs folder of the suite) and its name without .ini. 0, or 2 after a message. */
+static int one_config(const char *file, char *folder, size_t folder_len, char *stem, size_t stem_len)
+{
+    const char *slash = strrchr(file, '/');
+    const char *base = slash ? slash + 1 : file;
+    size_t len = strlen(base);
+    if (len < 5 || strcmp(base + len - 4, ".ini") != 0 || len - 4 >= stem_len) {
+        fprintf(stderr, "leveler-ctlbench: --config %s: give an INI file (NAME.ini, NAME under %zu characters)\n",
+                file, stem_len);
+        return 2;
+    }
+    snprintf(stem, stem_len, "%.*s", (int)(len - 4), base);
+    if (slash)
+        snprintf(folder, folder_len, "%.*s", (int)(slash - file), file);
+    else
+        snprintf(folder, folder_len, ".");
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     bench_args a = {.out = "build/ctlbench", .configs = LEVELER_SOURCE_DIR "/host_sim/configs", .plots = true};
@@ -454,7 +475,13 @@ int main(int argc, char **argv)
     }
     static scored s[MAX_SCENARIOS];
     static ctlbench_scenario suite[MAX_SCENARIOS];
-    size_t n = ctlbench_suite(short_suite, suite, MAX_SCENARIOS);
+    static char folder[PLANT_PATH_MAX], stem[CTLBENCH_NAME_MAX];
+    if (a.config && one_config(a.config, folder, sizeof folder, stem, sizeof stem) != 0)
+        return 2;
+    if (a.config)
+        configs = folder;
+    size_t n = a.config ? ctlbench_suite_for(stem, short_suite, suite, MAX_SCENARIOS)
+                        : ctlbench_suite(short_suite, suite, MAX_SCENARIOS);
     for (size_t i = 0; i < n; i++)
         s[i].sc = suite[i];
     if (run_all(configs, out, plots, a.quiet, s, n) != 0)

@@ -131,3 +131,29 @@ def test_errors_name_the_file_line_and_key(tmp_path, sections, line, words):
     p = sim(cfg, tmp_path / "x.csv")
     assert p.returncode == 2
     assert f"{cfg}:{line}: [effect." in p.stderr and words in p.stderr, p.stderr
+
+
+def ctlbench(args, out):
+    exe = os.path.join(os.path.dirname(lcfg.find_sim()), "leveler-ctlbench")
+    p = subprocess.run([exe, "--short", "--no-plots", "--quiet", "--out", str(out)] + args,
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    import json
+    with open(out / "scorecard.json") as fh:
+        return {s["name"]: s for s in json.load(fh)["scenarios"]}
+
+
+def test_ctlbench_scores_a_rig_of_ones_own(tmp_path):
+    """leveler-ctlbench --config FILE: the thesis config given as a file of one's own
+    scores as the suite's own scenario does; the model with a leak makes the
+    compressor work longer at rest (it refills what leaks)."""
+    own = ctlbench(["--config", BASE], tmp_path / "own")
+    suite = ctlbench([], tmp_path / "suite")
+    assert own["thesis-900lb"]["runs"] == suite["thesis-900lb"]["runs"]
+    leak = write_config(tmp_path / "leaky.ini", {"leak": {"leak_area_m2": 6e-9}})
+    leaky = ctlbench(["--config", leak], tmp_path / "leaky")
+    assert set(leaky) == {"leaky", "rest-leaky-noise2"}
+    # (algorithms 1 and 3; algorithm 2's compressor chatters at its charge limit either way)
+    on = [r["compressor_on_s"] for r in leaky["rest-leaky-noise2"]["runs"] if r["algorithm"] != 2]
+    base = [r["compressor_on_s"] for r in own["rest-900lb-noise2"]["runs"] if r["algorithm"] != 2]
+    assert all(a > b + 1.0 for a, b in zip(on, base)), (on, base)
