@@ -9,6 +9,7 @@ import ctypes
 import functools
 import glob
 import hashlib
+import tempfile
 import os
 
 import numpy as np
@@ -355,7 +356,7 @@ class CPlant(Simulator):
         self.lib.diag_config_effects.argtypes = [ctypes.c_char_p, ctypes.POINTER(ctypes.c_int32),
                                                  ctypes.POINTER(ctypes.c_double), ctypes.c_char_p, ctypes.c_int]
         self._config_fx = {}
-        self._twins = None    # folder of the configs with their effects at nominal (effects_off)
+        self._twins = None    # TemporaryDirectory of the configs with their effects at nominal (effects_off)
 
     def config_effects(self, config):
         """The config's own effects ([effect.NAME] sections, which the C plant runs on
@@ -383,12 +384,12 @@ class CPlant(Simulator):
         own = self.config_effects(config)
         if not own:
             return config
-        import tempfile
-        self._twins = self._twins or tempfile.mkdtemp(prefix="leveler-effects-off-")
+        # removed with this simulator (or at exit), not left in /tmp
+        self._twins = self._twins or tempfile.TemporaryDirectory(prefix="leveler-effects-off-")
         text = f"[config]\ninclude = {config_path(config)}\n" + "".join(
             f"\n[effect.{name}]\n" + "".join(f"{q.name} = {q.nominal!r}\n" for q in fx.get(name).params)
             for name in own)
-        path = os.path.join(self._twins, hashlib.sha1(text.encode()).hexdigest()[:16] + ".ini")
+        path = os.path.join(self._twins.name, hashlib.sha1(text.encode()).hexdigest()[:16] + ".ini")
         if not os.path.exists(path):
             with open(path + ".tmp", "w") as fh:
                 fh.write(text)

@@ -381,6 +381,7 @@ def model_of(config, calibration, handles, v, entry):
     the config as given, the calibrated values (v: the vector the final figures used,
     None off the calibration path) and the named entry's effect values, each with where
     it came from. Values are the very floats the simulations had."""
+    from .cplant import config_path
     keys = []
     if v is not None:
         cal = handles[0]
@@ -394,12 +395,7 @@ def model_of(config, calibration, handles, v, entry):
     for e in fx.parts(entry["effect"]) if entry else ():
         effects[e] = {q.name: {"value": float(entry["params"][q.name]["value"]),
                                "interval": entry["params"][q.name].get("interval")} for q in fx.get(e).params}
-    return {"config": config_path_of(config), "keys": keys, "effects": effects}
-
-
-def config_path_of(config):
-    from .cplant import config_path
-    return config_path(config) if isinstance(config, str) else config
+    return {"config": config_path(config), "keys": keys, "effects": effects}
 
 
 JOINT_CANDIDATES = 2   # the effects (best alone on the config as given) fitted with the calibration
