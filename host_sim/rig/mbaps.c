@@ -40,11 +40,10 @@
 #include <openssl/x509v3.h>
 
 #include "cli.h"
+#include "mbap.h"
 #include "rig_config.h"
 
 #define ROLE_OID "1.3.6.1.4.1.50316.802.1"
-#define MBAP_LEN 7
-#define FRAME_MAX (MBAP_LEN + 253)
 #define HANDSHAKE_TIMEOUT_S 10
 
 static volatile sig_atomic_t stop_requested;
@@ -163,32 +162,30 @@ static int write_all(int fd, const uint8_t *p, size_t n)
  * if the role may write, else exception 01 from here. -1: close. */
 static int forward_frames(SSL *ssl, int rig_fd, bool may_write, uint8_t *buf, size_t *len)
 {
-    while (*len >= MBAP_LEN) {
-        size_t length = (size_t)(buf[4] << 8 | buf[5]);
-        if (buf[2] != 0 || buf[3] != 0 || length < 2 || length > 254)
-            return -1; /* not Modbus TCP */
-        size_t frame = 6 + length;
-        if (*len < frame)
-            return 0;
-        uint8_t function = buf[MBAP_LEN];
+    for (;;) {
+        int whole = mbap_frame_length(buf, *len);
+        if (whole <= 0)
+            return whole; /* 0: wait for the rest; -1: not Modbus TCP */
+        size_t frame = (size_t)whole;
+        uint8_t function = buf[MBAP_HEADER_LEN];
         if (may_write || (function >= 1 && function <= 4)) {
             if (write_all(rig_fd, buf, frame) != 0)
                 return -1;
         } else {
-            uint8_t rsp[MBAP_LEN + 2] = {buf[0], buf[1], 0, 0, 0, 3, buf[6], (uint8_t)(function | 0x80u), 1};
-            if (ssl_write_all(ssl, rsp, sizeof rsp) != 0)
+            uint8_t rsp[MBAP_HEADER_LEN + 2];
+            size_t n = mbap_exception_response(buf, LEVELER_PDU_ILLEGAL_FUNCTION, rsp);
+            if (ssl_write_all(ssl, rsp, n) != 0)
                 return -1;
         }
         memmove(buf, buf + frame, *len - frame);
         *len -= frame;
     }
-    return 0;
 }
 
 /* Relays until either side closes. */
 static void relay(SSL *ssl, int tls_fd, int rig_fd, bool may_write)
 {
-    uint8_t in[2 * FRAME_MAX], out[4096];
+    uint8_t in[2 * MBAP_FRAME_MAX], out[4096];
     size_t in_len = 0;
     while (!stop_requested) {
         struct pollfd p[2] = {{.fd = tls_fd, .events = POLLIN}, {.fd = rig_fd, .events = POLLIN}};

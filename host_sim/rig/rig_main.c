@@ -9,7 +9,7 @@
  * Every 10 ms on absolute deadlines (clock_nanosleep TIMER_ABSTIME on
  * CLOCK_MONOTONIC): scan the Modbus sensor module, leveler_app_tick(), apply
  * the outputs, write a run-log line; the time left before the next deadline
- * serves the supervision clients. A missed deadline is counted through
+ * serves the Modbus TCP clients. A missed deadline is counted through
  * leveler_app_report_tick_overrun() and the schedule skips ahead.
  *
  * clock = lockstep (tests against leveler-plant-server): no sleeping; after
@@ -56,7 +56,7 @@
 #include "runlog_firmware.h"
 #include "modbus_link.h"
 #include "sensor_module.h"
-#include "supervision.h"
+#include "modbus_tcp_server.h"
 
 /* The measurements block of the input registers: height, P2, P1, P3 (int32,
  * high word first) then sensor_fault_bits; one read per logged tick. */
@@ -108,7 +108,7 @@ typedef struct {
     rig_sensors *sensors;
     rig_output_backend outputs;
     bool outputs_open;
-    rig_supervision *sv;
+    rig_modbus_tcp_server *tcp_server;
     runlog *log;
     double last_load_n;
     double last_t_s;           /* time of the last logged row: the log's time must increase */
@@ -229,22 +229,22 @@ static void write_port_file(const rig *r)
     char tmp[RIG_TEXT_MAX + 8];
     snprintf(tmp, sizeof tmp, "%s.tmp", r->cfg.supervision_port_file);
     FILE *f = fopen(tmp, "w");
-    if (f == NULL || fprintf(f, "%u\n", rig_supervision_port(r->sv)) < 0 || fclose(f) != 0 ||
+    if (f == NULL || fprintf(f, "%u\n", rig_modbus_tcp_server_port(r->tcp_server)) < 0 || fclose(f) != 0 ||
         rename(tmp, r->cfg.supervision_port_file) != 0)
         fprintf(stderr, "leveler-rig: [supervision] port_file %s: %s\n", r->cfg.supervision_port_file, strerror(errno));
 }
 
-static int open_supervision_and_log(rig *r, char *err, size_t err_len)
+static int open_tcp_server_and_log(rig *r, char *err, size_t err_len)
 {
     const rig_config *cfg = &r->cfg;
     if (cfg->supervision_enabled) {
-        r->sv = rig_supervision_open(cfg, err, err_len);
-        if (r->sv == NULL)
+        r->tcp_server = rig_modbus_tcp_server_open(cfg, err, err_len);
+        if (r->tcp_server == NULL)
             return -1;
         if (cfg->supervision_port_file[0])
             write_port_file(r);
-        fprintf(stderr, "leveler-rig: supervision on %s port %u%s\n", cfg->supervision_address,
-                rig_supervision_port(r->sv), cfg->read_only ? " (read-only)" : "");
+        fprintf(stderr, "leveler-rig: Modbus TCP server on %s port %u%s\n", cfg->supervision_address,
+                rig_modbus_tcp_server_port(r->tcp_server), cfg->read_only ? " (read-only)" : "");
     }
     if (cfg->log_path[0]) {
         runlog_options lo = {.path = cfg->log_path, .config_name = cfg->name, .source = "rig",
@@ -260,7 +260,7 @@ static int open_supervision_and_log(rig *r, char *err, size_t err_len)
     return 0;
 }
 
-/* The module link, outputs driven safe, the firmware, supervision, the log. 0 or 1 (message printed). */
+/* The module link, outputs driven safe, the firmware, the Modbus TCP server, the log. 0 or 1 (message printed). */
 static int rig_open(rig *r)
 {
     char err[512];
@@ -279,7 +279,7 @@ static int rig_open(rig *r)
         rig_hal_bind(r->sensors, r->cfg.clock);
         leveler_app_init();
     }
-    if (!r->outputs_open || open_supervision_and_log(r, err, sizeof err) != 0) {
+    if (!r->outputs_open || open_tcp_server_and_log(r, err, sizeof err) != 0) {
         fprintf(stderr, "leveler-rig: %s: %s\n", r->config_path, err);
         return 1;
     }
@@ -311,12 +311,12 @@ static uint64_t refresh_ticks(const rig_config *cfg)
     return t < 1 ? 1 : t > 100 ? 100 : t;
 }
 
-/* Sleeps to the next deadline (serving supervision meanwhile); counts missed ones. */
+/* Sleeps to the next deadline (serving Modbus TCP clients meanwhile); counts missed ones. */
 static void wait_for_tick(rig *r, long long *deadline)
 {
     if (r->cfg.clock == RIG_CLOCK_LOCKSTEP) {
-        if (r->sv)
-            rig_supervision_serve(r->sv, 0);
+        if (r->tcp_server)
+            rig_modbus_tcp_server_serve(r->tcp_server, 0);
         if (rig_sensors_step(r->sensors, LEVELER_TICK_MS) != 0) {
             /* The module did not advance: wait a little instead of spinning. */
             struct timespec pause = {0, 2 * NS_PER_MS};
@@ -324,10 +324,10 @@ static void wait_for_tick(rig *r, long long *deadline)
         }
         return;
     }
-    /* Serve supervision until ~1 ms before the deadline, then sleep to it exactly. */
-    if (r->sv) {
+    /* Serve Modbus TCP clients until ~1 ms before the deadline, then sleep to it exactly. */
+    if (r->tcp_server) {
         long long left_ms = (*deadline - mono_ns()) / NS_PER_MS - 1;
-        rig_supervision_serve(r->sv, left_ms > 0 ? (int)left_ms : 0);
+        rig_modbus_tcp_server_serve(r->tcp_server, left_ms > 0 ? (int)left_ms : 0);
     }
     struct timespec when = ts_of(*deadline);
     while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &when, NULL) == EINTR && !stop_requested) {
@@ -432,7 +432,7 @@ static int rig_close(rig *r)
     }
     uint32_t failed_scans = r->sensors ? rig_sensors_failed_scans(r->sensors) : 0;
     rig_link_stats ls = r->link ? rig_link_get_stats(r->link) : (rig_link_stats){0};
-    rig_supervision_close(r->sv);
+    rig_modbus_tcp_server_close(r->tcp_server);
     rig_sensors_close(r->sensors);
     rig_link_close(r->link);
     fprintf(stderr,

@@ -1,14 +1,17 @@
 /*
- * Supervision server of leveler-rig: Modbus TCP (libmodbus builds every reply)
- * over the firmware's register map (leveler_regs_read / leveler_regs_write).
+ * The Modbus TCP server of leveler-rig (configured in [supervision]): MBAP
+ * framing (mbap.c) around the firmware's PDU server (leveler/modbus_pdu.h),
+ * which answers from the register map as the RTU slave does.
  *
  * - Several clients at once; sockets are non-blocking and a request is only
  *   handled once its whole MBAP frame has arrived, so no client can hold up
- *   the 10 ms tick. rig_supervision_serve() waits at most timeout_ms.
+ *   the 10 ms tick. rig_modbus_tcp_server_serve() waits at most timeout_ms.
  * - Writes go through the firmware's validation: a refused write is answered
  *   with exception 03 (ILLEGAL DATA VALUE) and changes nothing.
  * - read_only: every write function (05, 06, 15, 16) is answered with
- *   exception 01 (ILLEGAL FUNCTION): the server does not offer writing.
+ *   exception 01 (ILLEGAL FUNCTION): the server does not offer writing. This
+ *   write policy (and writers, write_socket below) is checked here, before
+ *   the PDU server.
  * - Function codes other than 01-06, 15, 16: exception 01.
  * - writers: only clients from these addresses may write; others get exception 01.
  * - write_socket: a Unix socket (mode 0660) whose clients may write; with it
@@ -32,15 +35,15 @@
  *   for new bytes.
  * - Exception replies carry function | 0x80 (0x81..0xFF, never wrapped).
  */
-#ifndef LEVELER_RIG_SUPERVISION_H
-#define LEVELER_RIG_SUPERVISION_H
+#ifndef LEVELER_RIG_MODBUS_TCP_SERVER_H
+#define LEVELER_RIG_MODBUS_TCP_SERVER_H
 
 #include <stddef.h>
 #include <stdint.h>
 
 #include "rig_config.h"
 
-typedef struct rig_supervision rig_supervision;
+typedef struct rig_modbus_tcp_server rig_modbus_tcp_server;
 
 typedef struct {
     uint32_t accepted;
@@ -52,12 +55,12 @@ typedef struct {
     uint32_t dropped_garbage;
     uint32_t requests;
     uint32_t exceptions;
-} rig_supervision_stats;
+} rig_modbus_tcp_server_stats;
 
-rig_supervision *rig_supervision_open(const rig_config *cfg, char *err, size_t err_len);
-uint16_t rig_supervision_port(const rig_supervision *sv);
-void rig_supervision_serve(rig_supervision *sv, int timeout_ms);
-rig_supervision_stats rig_supervision_get_stats(const rig_supervision *sv);
-void rig_supervision_close(rig_supervision *sv);
+rig_modbus_tcp_server *rig_modbus_tcp_server_open(const rig_config *cfg, char *err, size_t err_len);
+uint16_t rig_modbus_tcp_server_port(const rig_modbus_tcp_server *srv);
+void rig_modbus_tcp_server_serve(rig_modbus_tcp_server *srv, int timeout_ms);
+rig_modbus_tcp_server_stats rig_modbus_tcp_server_get_stats(const rig_modbus_tcp_server *srv);
+void rig_modbus_tcp_server_close(rig_modbus_tcp_server *srv);
 
 #endif
