@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Writes firmware/fuzz/corpus/: one small file per path through modbus_rtu.c.
+"""Writes firmware/fuzz/corpus/: one small file per path through modbus_rtu.c
+and the PDU server it frames (modbus_pdu.c).
 
 Each file is an ADU without its CRC (address, function code, data); the
 harness (rtu_harness.c) runs it raw, with its CRC appended, with a small

@@ -58,7 +58,7 @@ double rig_hal_now_s(void)
     return (double)(now.tv_sec - start.tv_sec) + 1e-9 * (double)(now.tv_nsec - start.tv_nsec);
 }
 
-/* No serial supervision link on the rig: Modbus TCP serves the register map. */
+/* No serial link on the rig: its Modbus TCP server serves the register map. */
 size_t hal_serial_read(uint8_t *buf, size_t max_len)
 {
     (void)buf;

@@ -8,7 +8,7 @@
  * runner starts, so a lockstep rig (tests) and a real-time one are played
  * alike. At each row's time the register columns (mode, manual_compressor,
  * manual_spring_valve, manual_vent_valve, manual_acc_valve) are written through
- * the rig's supervision server: the manual requests first (consecutive coils
+ * the rig's Modbus TCP server: the manual requests first (consecutive coils
  * in one FC 15), then the mode (FC 06); the rig validates each request
  * all-or-nothing and a refusal ends the run. The load is weights on a real rig: the runner tells the operator
  * when to change it (--warn-s seconds ahead, then at the time), it does not
@@ -55,7 +55,7 @@ enum { OPT_SCHEDULE = 0x100, OPT_HOST, OPT_PORT, OPT_UNIT, OPT_WARN_S };
 
 static const cli_option runner_options[] = {
     {"schedule", OPT_SCHEDULE, "FILE", "the schedule (CSV t_s,load_n[,mode,manual_*]; docs/config-format.md)", 1},
-    {"host", OPT_HOST, "ADDR", "the rig's supervision address (default 127.0.0.1)", 0},
+    {"host", OPT_HOST, "ADDR", "the rig's Modbus TCP server address (default 127.0.0.1)", 0},
     {"port", OPT_PORT, "N", "its Modbus TCP port (default 502)", 0},
     {"unit", OPT_UNIT, "ID", "Modbus unit id 0..247 (default 1)", 0},
     {"warn-s", OPT_WARN_S, "S", "tell the operator S seconds before a load change (default 5)", 0},

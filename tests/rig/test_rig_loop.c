@@ -95,7 +95,7 @@ static int raw_connect(int port)
     return fd;
 }
 
-static void supervision_over_modbus_tcp(void **state)
+static void modbus_tcp_server_serves_the_register_map(void **state)
 {
     (void)state;
     rig_run run;
@@ -320,7 +320,7 @@ int main(int argc, char **argv)
     steady_config = argv[4];
     signal(SIGPIPE, SIG_IGN);
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(supervision_over_modbus_tcp),
+        cmocka_unit_test(modbus_tcp_server_serves_the_register_map),
         cmocka_unit_test(read_only_refuses_writes),
         cmocka_unit_test(sigterm_leaves_outputs_safe_and_log_whole),
         cmocka_unit_test(realtime_ticks_and_overruns),

@@ -23,7 +23,7 @@ MAX_RATE_HZ = 10.0
 def parse_args(argv):
     ap = leveler_cli.parser("leveler-monitor", __doc__)
     ap.add_argument("--host", default="127.0.0.1", metavar="ADDR",
-                    help="the rig's supervision address, Modbus TCP (default 127.0.0.1)")
+                    help="the rig's Modbus TCP server address (default 127.0.0.1)")
     ap.add_argument("--port", type=int, default=1502, metavar="N", help="its Modbus TCP port (default 1502)")
     ap.add_argument("--serial", metavar="DEVICE", help="a board's serial port instead (Modbus RTU)")
     ap.add_argument("--baud", type=int, default=19200, metavar="N", help="RTU baud rate (default 19200)")

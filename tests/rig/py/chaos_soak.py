@@ -1,6 +1,6 @@
 """The chaos soak (issue 23): leveler-rig (real time, 10 ms ticks) against
 leveler-plant-server under a random load schedule while an injector fires
-overlapping faults every 5-20 s, a supervisor polling at 10 Hz.
+overlapping faults every 5-20 s, a Modbus TCP client polling at 10 Hz.
 
     chaos_soak.py --seconds 600 --seed 23 --work DIR
 
@@ -28,7 +28,7 @@ Counted, each must be zero:
                          more than 50 ms between rows with no fault under way
   refused_writes_changed a refused write after which a holding register differs
   tls_without_cert_let_in a TLS client without a certificate got a reply
-  failed_polls           supervisor polls that failed with no fault under way
+  failed_polls           10 Hz polls that failed with no fault under way
   watchdog_not_rearmed   module restarts after which the watchdog register
                          did not read watchdog_ms within 3 s
 The watchdog register read after every module restart is printed."""
@@ -202,8 +202,8 @@ class Soak:
                                       stderr=open(self.work / "mbaps.out", "w"))
         self.mbaps_port = rp.read_port(self.work / "mbaps.port", self.mbaps, output=self.work / "mbaps.out")
 
-    # ---- the supervisor at 10 Hz ----
-    def supervise(self):
+    # ---- the Modbus TCP client polling at 10 Hz ----
+    def poll_rig(self):
         sv, module = rp.connect(self.rig.port), None
         prev_overruns, prev_dropped, prev_t, on_since = None, None, None, None
         next_t = time.monotonic()
@@ -417,8 +417,8 @@ class Soak:
         self.probe = subprocess.Popen([sys.executable, "-c", PROBE], stdout=subprocess.PIPE, text=True)
         threading.Thread(target=self.read_probe, daemon=True).start()
         time.sleep(2.0)
-        sup = threading.Thread(target=self.supervise, daemon=True)
-        sup.start()
+        poller = threading.Thread(target=self.poll_rig, daemon=True)
+        poller.start()
         threads = []
         for t, kind, dur in plan:
             while self.now() < t and self.rig.proc.poll() is None:
@@ -433,7 +433,7 @@ class Soak:
         for th in threads:
             th.join(15)
         self.stop.set()
-        sup.join(10)
+        poller.join(10)
         if self.rig.proc.poll() is not None:
             self.counts["rig_exits"] += 1
             self.notes.append(f"the rig exited with {self.rig.proc.returncode} during the soak")

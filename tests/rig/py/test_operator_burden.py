@@ -1,4 +1,4 @@
-"""Issue 23, item 7: what a module stall and busy supervisors cost the operator.
+"""Issue 23, item 7: what a module stall and busy Modbus TCP clients cost the operator.
 
 - A stall of the sensor module latches sensor faults; with [faults]
   auto_clear_after_s the rig clears them itself after that long of valid
@@ -7,7 +7,7 @@
   times; past that the faults wait for the operator. (Which faults may be
   auto-cleared at all is tested on auto_clear.c itself: test_auto_clear.c.)
 - During an outage stderr gets a few lines, not one per tick.
-- Four clients polling every 0.9 s hold all four supervision slots; a fifth
+- Four clients polling every 0.9 s hold all four Modbus TCP client slots; a fifth
   is served anyway: the least recently active gives way."""
 
 import os

@@ -1,5 +1,5 @@
 """Items 2, 3, 6 (addresses), 8 and 9 (writers) of issue 13 on leveler-rig's
-Modbus TCP supervision, with pymodbus, raw sockets and mbpoll (Debian) as
+Modbus TCP server, with pymodbus, raw sockets and mbpoll (Debian) as
 independent clients, all on loopback."""
 
 import socket
