@@ -116,70 +116,53 @@ static bool check_read_request(const uint8_t *pdu, size_t pdu_len, bool broadcas
     return true;
 }
 
-/* FC 01 / 02. Request PDU: fc, start(2), quantity(2). */
-static void read_bits(const uint8_t *pdu, size_t pdu_len, bool broadcast, leveler_table table,
-                      pdu_out *out)
+/* Bits into the response: 8 to a byte, the first in the lowest bit; the
+ * unused high bits of the last byte are 0. */
+static void pack_bits(const uint16_t *bits, uint16_t quantity, uint8_t *packed, size_t byte_count)
 {
-    const uint8_t fc = pdu[0];
-    uint16_t start = 0;
-    uint16_t quantity = 0;
-    if (!check_read_request(pdu, pdu_len, broadcast, table, MAX_READ_BITS, out, &start, &quantity)) {
-        return;
-    }
-    if (quantity > SCRATCH_ITEMS) {
-        /* Legal and inside the table, but larger than this server's scratch. */
-        reply_exception(out, fc, LEVELER_PDU_SERVER_DEVICE_FAILURE);
-        return;
-    }
-    const size_t byte_count = ((size_t)quantity + 7u) / 8u; /* <= 16 */
-    if (out->pdu_cap < 2u + byte_count) {
-        reply_exception(out, fc, LEVELER_PDU_SERVER_DEVICE_FAILURE);
-        return;
-    }
-    uint16_t bits[SCRATCH_ITEMS];
-    const leveler_reg_status status = leveler_regs_read(table, start, quantity, bits);
-    if (status != LEVELER_REG_OK) {
-        reply_exception(out, fc, exception_for(status));
-        return;
-    }
-    uint8_t *packed = &out->pdu[2];
-    memset(packed, 0, byte_count); /* unused high bits of the last byte are 0 */
+    memset(packed, 0, byte_count);
     for (uint16_t i = 0; i < quantity; i++) {
         if (bits[i] != 0u) {
             packed[i / 8u] = (uint8_t)(packed[i / 8u] | (1u << (i % 8u)));
         }
     }
-    out->pdu[0] = fc;
-    out->pdu[1] = (uint8_t)byte_count;
-    out->pdu_len = 2u + byte_count;
 }
 
-/* FC 03 / 04. Request PDU: fc, start(2), quantity(2). */
-static void read_registers(const uint8_t *pdu, size_t pdu_len, bool broadcast,
-                           leveler_table table, pdu_out *out)
+/* FC 01 / 02 (bits) and 03 / 04 (registers, 2 bytes each, high byte first).
+ * Request PDU: fc, start(2), quantity(2). */
+static void read_items(const uint8_t *pdu, size_t pdu_len, bool broadcast, leveler_table table,
+                       pdu_out *out)
 {
     const uint8_t fc = pdu[0];
+    const bool bits = table == LEVELER_TABLE_COIL || table == LEVELER_TABLE_DISCRETE_INPUT;
     uint16_t start = 0;
     uint16_t quantity = 0;
-    if (!check_read_request(pdu, pdu_len, broadcast, table, MAX_READ_REGISTERS, out, &start, &quantity)) {
+    if (!check_read_request(pdu, pdu_len, broadcast, table, bits ? MAX_READ_BITS : MAX_READ_REGISTERS, out,
+                            &start, &quantity)) {
         return;
     }
-    const size_t byte_count = (size_t)quantity * 2u; /* <= 250 */
-    if (out->pdu_cap < 2u + byte_count) {
+    const size_t byte_count = bits ? ((size_t)quantity + 7u) / 8u : (size_t)quantity * 2u; /* <= 250 */
+    /* Legal and inside the table, but larger than this server's scratch (bits
+     * only: MAX_READ_REGISTERS is SCRATCH_ITEMS), or no room for the response. */
+    if (quantity > SCRATCH_ITEMS || out->pdu_cap < 2u + byte_count) {
         reply_exception(out, fc, LEVELER_PDU_SERVER_DEVICE_FAILURE);
         return;
     }
-    uint16_t words[SCRATCH_ITEMS];
-    const leveler_reg_status status = leveler_regs_read(table, start, quantity, words);
+    uint16_t items[SCRATCH_ITEMS];
+    const leveler_reg_status status = leveler_regs_read(table, start, quantity, items);
     if (status != LEVELER_REG_OK) {
         reply_exception(out, fc, exception_for(status));
         return;
     }
+    if (bits) {
+        pack_bits(items, quantity, &out->pdu[2], byte_count);
+    } else {
+        for (uint16_t i = 0; i < quantity; i++) {
+            put_be16(&out->pdu[2u + 2u * i], items[i]);
+        }
+    }
     out->pdu[0] = fc;
     out->pdu[1] = (uint8_t)byte_count;
-    for (uint16_t i = 0; i < quantity; i++) {
-        put_be16(&out->pdu[2u + 2u * i], words[i]);
-    }
     out->pdu_len = 2u + byte_count;
 }
 
@@ -208,8 +191,11 @@ static void write_and_echo(const uint8_t *pdu, size_t echo_len, leveler_table ta
     }
 }
 
-/* FC 05. Request PDU: fc, address(2), value(2) = 0xFF00 on / 0x0000 off. */
-static void write_single_coil(const uint8_t *pdu, size_t pdu_len, bool broadcast, pdu_out *out)
+/* FC 05 (a coil: value 0xFF00 on, 0x0000 off) and FC 06 (a holding register:
+ * every value is legal here; the register map judges it). Request PDU: fc,
+ * address(2), value(2); the response echoes it. */
+static void write_single(const uint8_t *pdu, size_t pdu_len, bool broadcast, leveler_table table,
+                         pdu_out *out)
 {
     const uint8_t fc = pdu[0];
     if (pdu_len != 5u) {
@@ -217,42 +203,22 @@ static void write_single_coil(const uint8_t *pdu, size_t pdu_len, bool broadcast
         return;
     }
     const uint16_t address = be16(&pdu[1]);
-    const uint16_t value = be16(&pdu[3]);
-    if (value != COIL_ON && value != COIL_OFF) {
-        reply_exception(out, fc, LEVELER_PDU_ILLEGAL_DATA_VALUE);
-        return;
+    uint16_t value = be16(&pdu[3]);
+    if (table == LEVELER_TABLE_COIL) {
+        if (value != COIL_ON && value != COIL_OFF) {
+            reply_exception(out, fc, LEVELER_PDU_ILLEGAL_DATA_VALUE);
+            return;
+        }
+        value = (value == COIL_ON) ? 1u : 0u;
     }
-    if (!range_in_table(LEVELER_TABLE_COIL, address, 1u)) {
+    if (!range_in_table(table, address, 1u)) {
         reply_exception(out, fc, LEVELER_PDU_ILLEGAL_DATA_ADDRESS);
         return;
     }
     if (!room_for_echo(out, fc, 5u, broadcast)) {
         return;
     }
-    const uint16_t bit = (value == COIL_ON) ? 1u : 0u;
-    write_and_echo(pdu, 5u, LEVELER_TABLE_COIL, address, 1u, &bit, out);
-}
-
-/* FC 06. Request PDU: fc, address(2), value(2). Every value is legal here;
- * the register map judges it. */
-static void write_single_register(const uint8_t *pdu, size_t pdu_len, bool broadcast,
-                                  pdu_out *out)
-{
-    const uint8_t fc = pdu[0];
-    if (pdu_len != 5u) {
-        reply_exception(out, fc, LEVELER_PDU_ILLEGAL_DATA_VALUE);
-        return;
-    }
-    const uint16_t address = be16(&pdu[1]);
-    const uint16_t value = be16(&pdu[3]);
-    if (!range_in_table(LEVELER_TABLE_HOLDING_REGISTER, address, 1u)) {
-        reply_exception(out, fc, LEVELER_PDU_ILLEGAL_DATA_ADDRESS);
-        return;
-    }
-    if (!room_for_echo(out, fc, 5u, broadcast)) {
-        return;
-    }
-    write_and_echo(pdu, 5u, LEVELER_TABLE_HOLDING_REGISTER, address, 1u, &value, out);
+    write_and_echo(pdu, 5u, table, address, 1u, &value, out);
 }
 
 /*
@@ -293,70 +259,53 @@ static bool check_write_multiple(const uint8_t *pdu, size_t pdu_len, bool broadc
     return room_for_echo(out, fc, 5u, broadcast);
 }
 
-/* FC 15. */
-static void write_multiple_coils(const uint8_t *pdu, size_t pdu_len, bool broadcast,
-                                 pdu_out *out)
+/* FC 15 (coils, 8 to a byte, the first in the lowest bit) and FC 16
+ * (holding registers, 2 bytes each, high byte first); the response is the
+ * request's first 5 bytes. */
+static void write_multiple(const uint8_t *pdu, size_t pdu_len, bool broadcast, leveler_table table,
+                           pdu_out *out)
 {
+    const bool bits = table == LEVELER_TABLE_COIL;
     uint16_t start, quantity;
-    if (!check_write_multiple(pdu, pdu_len, broadcast, LEVELER_TABLE_COIL, MAX_WRITE_BITS, out, &start,
-                              &quantity)) {
-        return;
-    }
-    uint16_t bits[SCRATCH_ITEMS];
-    for (uint16_t i = 0; i < quantity; i++) {
-        bits[i] = (uint16_t)((pdu[6u + i / 8u] >> (i % 8u)) & 1u);
-    }
-    write_and_echo(pdu, 5u, LEVELER_TABLE_COIL, start, quantity, bits, out);
-}
-
-/* FC 16. */
-static void write_multiple_registers(const uint8_t *pdu, size_t pdu_len, bool broadcast,
-                                     pdu_out *out)
-{
-    uint16_t start, quantity;
-    if (!check_write_multiple(pdu, pdu_len, broadcast, LEVELER_TABLE_HOLDING_REGISTER, MAX_WRITE_REGISTERS, out,
+    if (!check_write_multiple(pdu, pdu_len, broadcast, table, bits ? MAX_WRITE_BITS : MAX_WRITE_REGISTERS, out,
                               &start, &quantity)) {
         return;
     }
-    uint16_t words[SCRATCH_ITEMS]; /* quantity <= 123 */
+    uint16_t items[SCRATCH_ITEMS]; /* quantity <= SCRATCH_ITEMS: checked */
     for (uint16_t i = 0; i < quantity; i++) {
-        words[i] = be16(&pdu[6u + 2u * i]);
+        items[i] = bits ? (uint16_t)((pdu[6u + i / 8u] >> (i % 8u)) & 1u) : be16(&pdu[6u + 2u * i]);
     }
-    write_and_echo(pdu, 5u, LEVELER_TABLE_HOLDING_REGISTER, start, quantity, words, out);
+    write_and_echo(pdu, 5u, table, start, quantity, items, out);
 }
+
+/* The function codes served, each with its handler and table. */
+typedef void (*pdu_handler)(const uint8_t *pdu, size_t pdu_len, bool broadcast, leveler_table table,
+                            pdu_out *out);
+static const struct {
+    uint8_t fc;
+    pdu_handler handle;
+    leveler_table table;
+} SERVED[] = {
+    {FC_READ_COILS, read_items, LEVELER_TABLE_COIL},
+    {FC_READ_DISCRETE_INPUTS, read_items, LEVELER_TABLE_DISCRETE_INPUT},
+    {FC_READ_HOLDING_REGISTERS, read_items, LEVELER_TABLE_HOLDING_REGISTER},
+    {FC_READ_INPUT_REGISTERS, read_items, LEVELER_TABLE_INPUT_REGISTER},
+    {FC_WRITE_SINGLE_COIL, write_single, LEVELER_TABLE_COIL},
+    {FC_WRITE_SINGLE_REGISTER, write_single, LEVELER_TABLE_HOLDING_REGISTER},
+    {FC_WRITE_MULTIPLE_COILS, write_multiple, LEVELER_TABLE_COIL},
+    {FC_WRITE_MULTIPLE_REGISTERS, write_multiple, LEVELER_TABLE_HOLDING_REGISTER},
+};
 
 /* One request; broadcast: carried out without a reply (out->pdu is NULL). */
 static void dispatch(const uint8_t *pdu, size_t pdu_len, bool broadcast, pdu_out *out)
 {
-    switch (pdu[0]) {
-    case FC_READ_COILS:
-        read_bits(pdu, pdu_len, broadcast, LEVELER_TABLE_COIL, out);
-        break;
-    case FC_READ_DISCRETE_INPUTS:
-        read_bits(pdu, pdu_len, broadcast, LEVELER_TABLE_DISCRETE_INPUT, out);
-        break;
-    case FC_READ_HOLDING_REGISTERS:
-        read_registers(pdu, pdu_len, broadcast, LEVELER_TABLE_HOLDING_REGISTER, out);
-        break;
-    case FC_READ_INPUT_REGISTERS:
-        read_registers(pdu, pdu_len, broadcast, LEVELER_TABLE_INPUT_REGISTER, out);
-        break;
-    case FC_WRITE_SINGLE_COIL:
-        write_single_coil(pdu, pdu_len, broadcast, out);
-        break;
-    case FC_WRITE_SINGLE_REGISTER:
-        write_single_register(pdu, pdu_len, broadcast, out);
-        break;
-    case FC_WRITE_MULTIPLE_COILS:
-        write_multiple_coils(pdu, pdu_len, broadcast, out);
-        break;
-    case FC_WRITE_MULTIPLE_REGISTERS:
-        write_multiple_registers(pdu, pdu_len, broadcast, out);
-        break;
-    default:
-        reply_exception(out, pdu[0], LEVELER_PDU_ILLEGAL_FUNCTION);
-        break;
+    for (size_t i = 0; i < sizeof SERVED / sizeof SERVED[0]; i++) {
+        if (SERVED[i].fc == pdu[0]) {
+            SERVED[i].handle(pdu, pdu_len, broadcast, SERVED[i].table, out);
+            return;
+        }
     }
+    reply_exception(out, pdu[0], LEVELER_PDU_ILLEGAL_FUNCTION);
 }
 
 size_t leveler_modbus_pdu_serve(const uint8_t *req, size_t req_len, uint8_t *resp, size_t resp_cap)
