@@ -53,7 +53,7 @@ void hal_output_set(hal_output output, bool on);
 /* Monotonic milliseconds since start; wraps at 2^32 (use unsigned differences). */
 uint32_t hal_now_ms(void);
 
-/* Serial bytes for the supervision link (Modbus RTU on the board).
+/* Serial bytes for the Modbus RTU link on the board.
  * Non-blocking: return how many bytes were moved (0 when none). */
 size_t hal_serial_read(uint8_t *buf, size_t max_len);
 size_t hal_serial_write(const uint8_t *buf, size_t len);

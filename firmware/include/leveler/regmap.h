@@ -1,6 +1,6 @@
 /*
- * Supervision register map: the access functions the Modbus servers call
- * (the portable RTU slave in firmware/, the rig's Modbus TCP server).
+ * The Modbus register map: the access functions the PDU server calls
+ * (modbus_pdu.c, behind the RTU slave in firmware/ and the rig's Modbus TCP server).
  *
  * The table itself is generated at build time from firmware/regmap/registers.json
  * (C table: regmap_table.c / leveler/regmap_addr.h in the build tree; docs/registers.md).
