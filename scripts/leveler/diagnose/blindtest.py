@@ -51,6 +51,7 @@ from leveler import cli as leveler_cli
 from leveler import config as leveler_config
 from leveler import paths, thesis
 
+from . import blindtest_run
 from . import cplant
 from . import design
 from . import effects as fx
@@ -566,6 +567,32 @@ def summary(results):
     return out
 
 
+def print_case(r, pair=False):
+    """One line per case of the present family, as it finishes."""
+    if pair:
+        print(f"{'ok ' if r['both_top_two'] else 'MISS'} seed {r['seed']} {r['system']:<11} {r['log']:<5} "
+              f"truth {r['truth']:<26} named {' + '.join(r['effects']) or 'none':<26} top two {r['top_two']} "
+              f"held-out shrink {r['shrink_pct']:6.1f}%  ({r['seconds']:.0f} s)  top: {r['ranking'][:3]}  "
+              f"pairs: {r['pairs']}", flush=True)
+        return
+    ok = "ok " if r["verdict"] == r["truth"] else "MISS"
+    look = f" look-alikes {r['lookalikes']} -> {r['after_experiment']}" if r["lookalikes"] else ""
+    second = f" + {r['effects'][1]}" if len(r["effects"]) > 1 else ""
+    print(f"{ok} seed {r['seed']} {r['system']:<11} {r['log']:<5} truth {r['truth']:<15} named "
+          f"{r['named'] + second:<15} held-out shrink {r['shrink_pct']:6.1f}% confidence {r['confidence']} "
+          f"calibrated {r['calibrated']} ({r['seconds']:.0f} s){look}  top: {r['ranking'][:3]}", flush=True)
+
+
+def print_form_case(r):
+    """One line per case of another family, as it finishes."""
+    look = f" look-alikes {r['lookalikes']} -> {r.get('after_experiment')}" if r["lookalikes"] else ""
+    cal = f" calibrated {r['calibrated']}" if r["calibration"] is not None else ""
+    print(f"{'ok ' if r['right'] else 'MISS'} {r['family']} seed {r['seed']} {r['system']:<11} {r['log']:<5} "
+          f"form {r['form']:<20} truth {r['truth']:<15} named {r['named']:<15} "
+          f"held-out shrink {r['shrink_pct']:6.1f}% confidence {r['confidence']}{cal} "
+          f"({r['seconds']:.0f} s){look}  top: {r['ranking'][:3]}", flush=True)
+
+
 def main(argv=None):
     ap = leveler_cli.parser("leveler-blindtest", __doc__, "1 also when --check finds a target missed")
     ap.add_argument("--seeds", type=int, default=5, help="seeds per case (default 5)")
@@ -599,6 +626,7 @@ def main(argv=None):
     ap.add_argument("--write-confidence", metavar="FILE",
                     help="with --report or a family run: write each confidence level's right / cases over the "
                          "offform and unknown cases (the diagnosis's data/confidence.json)")
+    blindtest_run.add_options(ap)
     a = ap.parse_args(argv)
     if a.report:
         print_report(a.report)
@@ -615,34 +643,21 @@ def main(argv=None):
     for c in cases:
         if c not in CASES:
             ap.error(f"unknown case {c!r} (known: {', '.join(CASES)})")
-    sim = make_simulator()
-    extra = ["--fast"] if a.fast else []
+    extra = blindtest_run.diagnosis_extra(a, ["--fast"] if a.fast else [], a.seeds * (len(cases) + a.pairs))
     top = a.keep or tempfile.mkdtemp(prefix="leveler-blindtest-")
     os.makedirs(top, exist_ok=True)
-    results, pair_results = [], []
-    t_all = time.perf_counter()
+    force = (a.system, a.log, a.shape, a.algorithm)
+    jobs = []
     for seed in range(a.first_seed, a.first_seed + a.seeds):
         for case in cases:
-            r = run_case(sim, top, seed, case, len(results) + len(pair_results), extra,
-                             (a.system, a.log, a.shape, a.algorithm))
-            results.append(r)
-            ok = "ok " if r["verdict"] == case else "MISS"
-            look = f" look-alikes {r['lookalikes']} -> {r['after_experiment']}" if r["lookalikes"] else ""
-            second = f" + {r['effects'][1]}" if len(r["effects"]) > 1 else ""
-            print(f"{ok} seed {seed} {r['system']:<11} {r['log']:<5} truth {case:<15} named {r['named'] + second:<15}"
-                  f" held-out shrink {r['shrink_pct']:6.1f}% confidence {r['confidence']} "
-                  f"calibrated {r['calibrated']} ({r['seconds']:.0f} s){look}  "
-                  f"top: {r['ranking'][:3]}", flush=True)
+            jobs.append((len(jobs), "run_case", (top, seed, case, len(jobs), extra, force), {}))
         for j in range(a.pairs):
-            case = pair_case(seed, j, a.pairs)
-            r = run_case(sim, top, seed, case, len(results) + len(pair_results), extra,
-                         (a.system, a.log, a.shape, a.algorithm),
-                         slot=len(CASES) + j)
-            pair_results.append(r)
-            print(f"{'ok ' if r['both_top_two'] else 'MISS'} seed {seed} {r['system']:<11} {r['log']:<5} "
-                  f"truth {case:<26} named {' + '.join(r['effects']) or 'none':<26} top two {r['top_two']} "
-                  f"held-out shrink {r['shrink_pct']:6.1f}%  ({r['seconds']:.0f} s)  top: {r['ranking'][:3]}  "
-                  f"pairs: {r['pairs']}", flush=True)
+            jobs.append((len(jobs), "run_case", (top, seed, pair_case(seed, j, a.pairs), len(jobs), extra, force),
+                         {"slot": len(CASES) + j}))
+    t_all = time.perf_counter()
+    done = blindtest_run.run_jobs(jobs, a, lambda job, r: print_case(r, "slot" in job[3]))
+    results = [r for job, r in zip(jobs, done) if "slot" not in job[3]]
+    pair_results = [r for job, r in zip(jobs, done) if "slot" in job[3]]
     print()
     print(confusion(results))
     s = summary(results)
@@ -679,30 +694,28 @@ def main_families(a):
     if "present" in fams:
         argv = ["--seeds", str(a.seeds), "--first-seed", str(a.first_seed), "--keep", os.path.join(top, "present"),
                 "--pairs", str(a.pairs), "--cases", a.cases] + (["--fast"] if a.fast else []) + (["--check"] if a.check else [])
+        argv += (["--serial"] if a.serial else []) + (["--scheduler", a.scheduler] if a.scheduler else []) + \
+            (["--workers", str(a.workers)] if a.workers else []) + ["--dashboard", a.dashboard]
         rc = main(argv + (["--json", a.json + ".present.json"] if a.json else []))
-    sim = make_simulator()
-    extra = ["--fast"] if a.fast else []
     forms = set(a.forms.split(",")) if a.forms else None
-    results = []
-    t_all = time.perf_counter()
+    force = (a.system, a.log, a.shape, a.algorithm)
+    chosen = []
     for fam in [f for f in fams if f != "present"]:
         specs = family_specs(fam)
         for i, sp in enumerate(specs):
             sp["slot"] = 100 * (FAMILIES.index(fam)) + i
-        specs = [sp for sp in specs if forms is None or sp["form"] in forms]
-        fam_res = []
+        chosen += [sp for sp in specs if forms is None or sp["form"] in forms]
+    extra = blindtest_run.diagnosis_extra(a, ["--fast"] if a.fast else [], a.seeds * len(chosen))
+    jobs = []
+    for fam in [f for f in fams if f != "present"]:
+        specs = [sp for sp in chosen if sp["family"] == fam]
         for seed in range(a.first_seed, a.first_seed + a.seeds):
             for sp in specs:
-                r = run_form_case(sim, top, seed, sp, len(results) + len(fam_res), extra,
-                             (a.system, a.log, a.shape, a.algorithm))
-                fam_res.append(r)
-                look = f" look-alikes {r['lookalikes']} -> {r.get('after_experiment')}" if r["lookalikes"] else ""
-                cal = f" calibrated {r['calibrated']}" if r["calibration"] is not None else ""
-                print(f"{'ok ' if r['right'] else 'MISS'} {fam} seed {seed} {r['system']:<11} {r['log']:<5} "
-                      f"form {r['form']:<20} truth {r['truth']:<15} named {r['named']:<15} "
-                      f"held-out shrink {r['shrink_pct']:6.1f}% confidence {r['confidence']}{cal} "
-                      f"({r['seconds']:.0f} s){look}  top: {r['ranking'][:3]}", flush=True)
-        results += fam_res
+                jobs.append((len(jobs), "run_form_case", (top, seed, sp, len(jobs), extra, force), {}))
+    t_all = time.perf_counter()
+    results = blindtest_run.run_jobs(jobs, a, lambda job, r: print_form_case(r))
+    for fam in [f for f in fams if f != "present"]:
+        fam_res = [r for r in results if r["family"] == fam]
         print()
         print("\n".join(family_report(fam_res)))
         out[fam] = {"right": sum(r["right"] for r in fam_res), "cases": len(fam_res)}
