@@ -89,6 +89,23 @@ typedef enum {
 #define LEVELER_ALG3_EARLY_DEN 4
 #define LEVELER_ALG3_GAP_MIN_PA 5000
 #define LEVELER_ALG3_GAP_MAX_PA 300000
+#define LEVELER_ALG3_PROBE_REACH_UM 12700 /* a probe closes 0.5 in from where it started whatever it saw */
+
+/* A commissioning probe (commission.h): a move that ends at what it is to show, not at the target. */
+typedef enum {
+    LEVELER_ALG3_PROBE_NONE = 0,
+    LEVELER_ALG3_PROBE_BREAK = 1, /* closes once the platform broke away (the learner saw the motion) */
+    LEVELER_ALG3_PROBE_COAST = 2  /* closes once the platform moves at COAST_MIN_RATE: a coast time to learn */
+} leveler_alg3_probe_kind;
+
+/* watch.adopt bits: the next observation replaces the setting instead of moving it halfway (commissioning
+ * starts from nothing on a new rig). */
+#define LEVELER_ALG3_ADOPT_GAP 0x01u
+#define LEVELER_ALG3_ADOPT_TAU_UP 0x02u
+#define LEVELER_ALG3_ADOPT_TAU_DOWN 0x04u
+#define LEVELER_ALG3_ADOPT_K_UP 0x08u
+#define LEVELER_ALG3_ADOPT_K_DOWN 0x10u
+#define LEVELER_ALG3_ADOPT_ALL 0x1Fu
 
 /* What the learner saw (alg3_learn.c). */
 typedef struct {
@@ -109,6 +126,7 @@ typedef struct {
     int32_t end_height_um;
     int32_t end_p_spring_pa;
     int32_t p_spring_ring_pa[LEVELER_ALG3_RATE_TICKS]; /* P2 history, same slots as heights */
+    uint8_t adopt;            /* LEVELER_ALG3_ADOPT_* still to be taken as seen */
 } leveler_alg3_watch;
 
 typedef struct {
@@ -133,6 +151,9 @@ typedef struct {
     uint32_t burst_start_ms;
     uint16_t burst_ms;        /* length of the present burst */
     uint16_t moves;
+    uint8_t probe;            /* leveler_alg3_probe_kind of the present move */
+    int32_t probe_from_um;    /* where the probe started */
+    bool hold;                /* commissioning in charge: idle acts on no departure (commission.h) */
     leveler_dwell dwell;
     leveler_alg3_watch watch;
 } leveler_alg3;
@@ -150,6 +171,10 @@ leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings 
                                         int32_t p_spring_pa, int32_t p_pipe_pa, int32_t p_acc_pa, uint32_t now_ms,
                                         bool held, leveler_outputs *out, leveler_settings *learnt,
                                         bool *learnt_changed);
+
+/* Commissioning (commission.h): start a probe move, fill (dir < 0 as for a departure below: -1) or vent
+ * (+1), of the given kind; without the accumulator. Only from idle: returns false otherwise. */
+bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, uint32_t now_ms);
 
 /* The outputs actually driven this tick (after the supervisor), for the dwell timers. */
 void leveler_alg3_driven(leveler_alg3 *a, const leveler_outputs *driven, uint32_t now_ms);
