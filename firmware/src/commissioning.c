@@ -68,7 +68,7 @@ static bool quiet(leveler_commission *c, const leveler_alg3 *a, uint32_t now_ms)
         c->rest_ms = now_ms;
         return false;
     }
-    return now_ms - c->rest_ms >= LEVELER_COMMISSION_REST_MS;
+    return now_ms - c->rest_ms >= LEVELER_COMMISSION_CREEP_MS;
 }
 
 static void probe(leveler_commission *c, leveler_alg3 *a, bool up, uint32_t now_ms)

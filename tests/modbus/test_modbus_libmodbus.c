@@ -351,6 +351,37 @@ static void test_write_coils_read_back(void **state) /* FC 05, 15 */
     assert_int_equal(modbus_write_bits(ctx, first, 4, off), 4);
 }
 
+/* The commissioning command (coil commission) and its result over the wire: refused under algorithm 1
+ * (the default), running under algorithm 3 until the coil is written 0 (aborted); the result is a
+ * read-only holding register (kept in flash with the settings). */
+static void test_commission_coil_and_result(void **state)
+{
+    (void)state;
+    const int coil = spec_named("commission")->address;
+    uint8_t bit = 1;
+    assert_int_equal(read_holding("algorithm"), 1);
+    assert_int_equal(modbus_write_bit(ctx, coil, 1), 1);
+    sleep_ms(50); /* a few ticks */
+    assert_int_equal(modbus_read_bits(ctx, coil, 1, &bit), 1);
+    assert_int_equal(bit, 0);
+    assert_int_equal(read_holding("commission_result"), 4 /* refused */);
+    errno = 0;
+    assert_int_equal(write_holding("commission_result", 0), -1);
+    assert_int_equal(errno, EMBXILVAL);
+
+    assert_int_equal(write_holding("algorithm", 3), 1);
+    assert_int_equal(modbus_write_bit(ctx, coil, 1), 1);
+    sleep_ms(50);
+    assert_int_equal(modbus_read_bits(ctx, coil, 1, &bit), 1);
+    assert_int_equal(bit, 1); /* running */
+    assert_true(read_input("commission_step") >= 1);
+    assert_int_equal(modbus_write_bit(ctx, coil, 0), 1);
+    sleep_ms(50);
+    assert_int_equal(read_input("commission_step"), 0);
+    assert_int_equal(read_holding("commission_result"), 3 /* aborted */);
+    assert_int_equal(write_holding("algorithm", 1), 1);
+}
+
 /* ---- exceptions ---------------------------------------------------------------- */
 
 static void test_exception_01_illegal_function(void **state)
@@ -542,6 +573,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_input_registers_show_the_hal_and_time),
         cmocka_unit_test(test_discrete_inputs_show_the_outputs),
         cmocka_unit_test(test_coils_read),
+        cmocka_unit_test(test_commission_coil_and_result),
         cmocka_unit_test(test_write_single_register_reads_back),
         cmocka_unit_test(test_write_multiple_registers_reads_back),
         cmocka_unit_test(test_write_coils_read_back),
