@@ -257,17 +257,14 @@ static bool burst_done(leveler_alg3 *a, bool up, int32_t p_spring_pa, int32_t li
     return a->bursting && now_ms - a->burst_start_ms >= a->burst_ms;
 }
 
-/* A probe's end: the break-away seen (the learner registered a motion the probe's way), or (a coast probe)
- * the platform moving at COAST_MIN_RATE, or the platform PROBE_REACH from where it started whatever was seen. */
+/* A probe's end: the break-away seen (the learner registered a motion the probe's way), or (an early
+ * probe) moved PROBE_MOVED from its start, seen sooner than the rate window sees a motion (the learner
+ * takes the break-away from the settle that follows, alg3_learn.c), or PROBE_REACH whatever was seen. */
 static bool probe_done(const leveler_alg3 *a, bool up, int32_t h)
 {
-    int32_t along = up ? leveler_alg3_prediction_rate(a) : -leveler_alg3_prediction_rate(a);
     int64_t moved = up ? (int64_t)h - a->probe_from_um : (int64_t)a->probe_from_um - h;
-    bool far = moved > LEVELER_ALG3_PROBE_REACH_UM;
-    if (a->probe == LEVELER_ALG3_PROBE_COAST) {
-        return far || along >= LEVELER_ALG3_COAST_MIN_RATE_UM_S;
-    }
-    return far || a->watch.motion == (up ? 1 : -1);
+    bool early = a->probe == LEVELER_ALG3_PROBE_EARLY && moved >= LEVELER_ALG3_PROBE_MOVED_UM;
+    return early || moved > LEVELER_ALG3_PROBE_REACH_UM || a->watch.motion == (up ? 1 : -1);
 }
 
 /* Filling or venting: close when leveler_alg3_close_now() says so, or a burst is done (a probe: probe_done). */

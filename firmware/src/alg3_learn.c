@@ -105,6 +105,10 @@ void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leve
         return;
     }
     bool up = w->close_dir > 0;
+    if (a->probe != LEVELER_ALG3_PROBE_NONE && w->line_fresh) {
+        /* a probe closed before its break-away was seen: the excess counts from the line learnt since */
+        w->close_line_pa = leveler_alg3_line_estimate(a, set, up, w->close_height_um);
+    }
     int32_t old_tau = up ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
     int32_t old_k = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
     int32_t new_tau = coast_time_seen(w, up, travel_um, old_tau);
@@ -221,8 +225,10 @@ void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_
         if (a->phase == LEVELER_ALG3_IDLE) {
             w->lines_valid = false; /* nobody asked for this motion: the load has changed */
         }
+        /* a probe closes on the first millimetre, before the rate window sees the motion: its settle's */
+        bool probed = a->probe != LEVELER_ALG3_PROBE_NONE && a->phase == LEVELER_ALG3_SETTLING && w->close_dir == dir;
         bool breaks_away = w->motion == 0 && ((dir > 0 && a->phase == LEVELER_ALG3_FILLING) ||
-                                              (dir < 0 && a->phase == LEVELER_ALG3_VENTING));
+                                              (dir < 0 && a->phase == LEVELER_ALG3_VENTING) || probed);
         if (learn && breaks_away) {
             int32_t p_break = p_spring_at_start(a);
             learn_gap(a, set, dir, p_break, learnt, changed);

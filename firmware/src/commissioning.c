@@ -71,15 +71,26 @@ static bool quiet(leveler_commission *c, const leveler_alg3 *a, uint32_t now_ms)
     return now_ms - c->rest_ms >= LEVELER_COMMISSION_CREEP_MS;
 }
 
-static void probe(leveler_commission *c, leveler_alg3 *a, bool up, uint32_t now_ms)
+static void probe(leveler_commission *c, leveler_alg3 *a, bool up, uint8_t kind, uint32_t now_ms)
 {
     /* alg3's move direction: -1 fills (a departure below), +1 vents */
-    if (leveler_alg3_probe(a, up ? -1 : 1, LEVELER_ALG3_PROBE_BREAK, now_ms)) {
+    if (leveler_alg3_probe(a, up ? -1 : 1, kind, now_ms)) {
         c->step = up ? LEVELER_COMMISSION_PROBE_UP : LEVELER_COMMISSION_PROBE_DOWN;
     }
 }
 
-/* The sequence: rest, a vent probe, a fill probe, level. */
+/* In the band, and a creep still under way (the drift over the rest window, under CREEP) would not carry
+ * it out within CREEP_PROJECT windows. */
+static bool stays_in_band(const leveler_commission *c, const leveler_alg3 *a, const leveler_settings *set)
+{
+    int32_t h = leveler_alg3_height_um(a);
+    int64_t ahead = (int64_t)h + ((int64_t)h - c->rest_um) * LEVELER_COMMISSION_CREEP_PROJECT;
+    return a->out_dir == 0 && h >= set->band_lower_um && h <= set->band_upper_um && ahead >= set->band_lower_um &&
+           ahead <= set->band_upper_um;
+}
+
+/* The sequence: rest, a vent probe (closed early; again closed at the break-away when that taught no
+ * line), a fill probe, level. */
 static void advance(leveler_commission *c, leveler_alg3 *a, const leveler_settings *set, leveler_command *cmd,
                     uint32_t now_ms)
 {
@@ -87,20 +98,19 @@ static void advance(leveler_commission *c, leveler_alg3 *a, const leveler_settin
         return;
     }
     if (c->step == LEVELER_COMMISSION_REST) {
-        probe(c, a, false, now_ms);
+        probe(c, a, false, LEVELER_ALG3_PROBE_EARLY, now_ms);
+    } else if (c->step == LEVELER_COMMISSION_PROBE_DOWN && !a->watch.line_fresh) {
+        probe(c, a, false, LEVELER_ALG3_PROBE_BREAK, now_ms);
     } else if (c->step == LEVELER_COMMISSION_PROBE_DOWN) {
         c->down_pa = set->alg3_down_pa;
-        probe(c, a, true, now_ms);
+        probe(c, a, true, LEVELER_ALG3_PROBE_BREAK, now_ms);
     } else if (c->step == LEVELER_COMMISSION_PROBE_UP) {
         c->up_pa = set->alg3_up_pa;
         c->down_pa = set->alg3_down_pa != 0 ? set->alg3_down_pa : c->down_pa;
         a->hold = false; /* algorithm 3 levels with what it learnt */
         c->step = LEVELER_COMMISSION_LEVEL;
-    } else {
-        int32_t h = leveler_alg3_height_um(a);
-        if (h >= set->band_lower_um && h <= set->band_upper_um && a->out_dir == 0) {
-            finish(c, a, set, cmd, LEVELER_COMMISSION_DONE, now_ms);
-        }
+    } else if (stays_in_band(c, a, set)) {
+        finish(c, a, set, cmd, LEVELER_COMMISSION_DONE, now_ms);
     }
 }
 

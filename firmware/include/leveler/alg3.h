@@ -90,12 +90,14 @@ typedef enum {
 #define LEVELER_ALG3_GAP_MIN_PA 5000
 #define LEVELER_ALG3_GAP_MAX_PA 300000
 #define LEVELER_ALG3_PROBE_REACH_UM 12700 /* a probe closes 0.5 in from where it started whatever it saw */
+#define LEVELER_ALG3_PROBE_MOVED_UM 1000  /* a break-away probe closes once moved this far (above noise) */
 
 /* A commissioning probe (commission.h): a move that ends at what it is to show, not at the target. */
 typedef enum {
     LEVELER_ALG3_PROBE_NONE = 0,
     LEVELER_ALG3_PROBE_BREAK = 1, /* closes once the platform broke away (the learner saw the motion) */
-    LEVELER_ALG3_PROBE_COAST = 2  /* closes once the platform moves at COAST_MIN_RATE: a coast time to learn */
+    LEVELER_ALG3_PROBE_EARLY = 2  /* ... or moved PROBE_MOVED from its start, whichever is first: less excess
+                                   * for a fast vent; the learner needs the coast to show the motion */
 } leveler_alg3_probe_kind;
 
 /* watch.adopt bits: the next observation replaces the setting instead of moving it halfway (commissioning

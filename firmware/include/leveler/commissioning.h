@@ -38,6 +38,7 @@
 #define LEVELER_COMMISSION_REST_MS 1000u /* at rest this long before a probe and at the end ... */
 #define LEVELER_COMMISSION_CREEP_UM 1000  /* ... and then moved less than this (above sensor noise) ... */
 #define LEVELER_COMMISSION_CREEP_MS 2000u /* ... in this long (a slow creep is no rest) */
+#define LEVELER_COMMISSION_CREEP_PROJECT 2 /* the end: the last window's creep, 2 more of it, stays inside */
 
 /* registers.json commission_step */
 typedef enum {
