@@ -110,6 +110,13 @@ static leveler_control_state alg3_decide(const leveler_settings *set, const leve
     return band;
 }
 
+/* The commissioning routine's tick; a latched fault holding the safe state ends it. */
+static void commission_tick(const leveler_settings *set, uint32_t now_ms)
+{
+    bool held_by_fault = g_supervisor.outputs_safe && (g_supervisor.latched_bits & LEVELER_FAULTS_HOLDING_SAFE) != 0u;
+    leveler_commission_tick(&g_commission, &g_alg3, set, &g_command, held_by_fault, now_ms);
+}
+
 void leveler_app_tick(void)
 {
     const leveler_settings *set = leveler_settings_current();
@@ -132,8 +139,7 @@ void leveler_app_tick(void)
     };
 
     /* 2. commissioning (it drives algorithm 3), control (auto) or manual request, then the supervisor's word */
-    bool held_by_fault = g_supervisor.outputs_safe && (g_supervisor.latched_bits & LEVELER_FAULTS_HOLDING_SAFE) != 0u;
-    leveler_commission_tick(&g_commission, &g_alg3, set, &g_command, held_by_fault, now_ms);
+    commission_tick(set, now_ms);
     leveler_outputs request;
     leveler_control_state band =
         (set->algorithm == (uint16_t)LEVELER_ALGO_HYSTERESIS_AWARE)
