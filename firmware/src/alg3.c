@@ -177,7 +177,7 @@ static void start_move(leveler_alg3 *a, int8_t dir, int64_t off_um, uint32_t now
     a->probe = LEVELER_ALG3_PROBE_NONE;
 }
 
-bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, uint32_t now_ms)
+bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, int32_t moved_um, uint32_t now_ms)
 {
     if (a->phase != LEVELER_ALG3_IDLE || !a->primed) {
         return false;
@@ -185,9 +185,12 @@ bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, uint32_t now_
     a->retry = false;
     start_move(a, dir, 0, now_ms);
     a->fine = false;
-    a->use_acc = false;
+    a->use_acc = dir < 0; /* a fill: until half way up (moving()), then never again in this probe */
     a->probe = kind;
     a->probe_from_um = leveler_alg3_height_um(a);
+    a->probe_moved_um = moved_um < LEVELER_ALG3_PROBE_MOVED_MIN_UM   ? LEVELER_ALG3_PROBE_MOVED_MIN_UM
+                        : moved_um > LEVELER_ALG3_PROBE_MOVED_MAX_UM ? LEVELER_ALG3_PROBE_MOVED_MAX_UM
+                                                                     : moved_um;
     return true;
 }
 
@@ -257,13 +260,20 @@ static bool burst_done(leveler_alg3 *a, bool up, int32_t p_spring_pa, int32_t li
     return a->bursting && now_ms - a->burst_start_ms >= a->burst_ms;
 }
 
-/* A probe's end: the break-away seen (the learner registered a motion the probe's way), or (an early
- * probe) moved PROBE_MOVED from its start, seen sooner than the rate window sees a motion (the learner
- * takes the break-away from the settle that follows, alg3_learn.c), or PROBE_REACH whatever was seen. */
-static bool probe_done(const leveler_alg3 *a, bool up, int32_t h)
+/* How far the platform moved the probe's way since it started (um). */
+int32_t leveler_alg3_probe_moved_um(const leveler_alg3 *a, bool up)
 {
-    int64_t moved = up ? (int64_t)h - a->probe_from_um : (int64_t)a->probe_from_um - h;
-    bool early = a->probe == LEVELER_ALG3_PROBE_EARLY && moved >= LEVELER_ALG3_PROBE_MOVED_UM;
+    int32_t h = leveler_alg3_height_um(a);
+    return leveler_sat_i32(up ? (int64_t)h - a->probe_from_um : (int64_t)a->probe_from_um - h);
+}
+
+/* A probe's end: the break-away seen (the learner registered a motion the probe's way), or (an early
+ * probe) moved probe_moved_um from its start, seen sooner than the rate window sees a motion (the
+ * learner takes the line where it stops, alg3_learn.c), or PROBE_REACH whatever was seen. */
+static bool probe_done(const leveler_alg3 *a, bool up)
+{
+    int32_t moved = leveler_alg3_probe_moved_um(a, up);
+    bool early = a->probe == LEVELER_ALG3_PROBE_EARLY && moved >= a->probe_moved_um;
     return early || moved > LEVELER_ALG3_PROBE_REACH_UM || a->watch.motion == (up ? 1 : -1);
 }
 
@@ -276,12 +286,12 @@ static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int3
     /* the line broke away from in this move is the present load's: its coast needs no stretch */
     bool sure = a->watch.line_fresh;
     bool done = a->probe != LEVELER_ALG3_PROBE_NONE
-                    ? probe_done(a, up, h)
+                    ? probe_done(a, up)
                     : leveler_alg3_close_now(set, up, h, leveler_alg3_prediction_rate(a), p_spring_pa, line, sure);
     if (a->probe != LEVELER_ALG3_PROBE_NONE && up) {
         /* a probe crossing the gap draws on the accumulator for its first half (an estimated line: the
          * other line's stop plus the gap), then breaks away on the compressor alone: a small excess */
-        a->use_acc = line != 0 && (int64_t)p_spring_pa < (int64_t)line - set->alg3_gap_pa / 2;
+        a->use_acc = a->use_acc && line != 0 && (int64_t)p_spring_pa < (int64_t)line - set->alg3_gap_pa / 2;
     }
     if (done || burst) {
         leveler_alg3_note_close(a, up ? 1 : -1, p_spring_pa, line);

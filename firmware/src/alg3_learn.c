@@ -88,13 +88,41 @@ static int32_t coast_k_seen(leveler_alg3_watch *w, bool up, int64_t travel_um, i
     return learnt_value(w, bit, old, seen, LEVELER_ALG3_K_MIN_PA_PER_MM, LEVELER_ALG3_K_MAX_PA_PER_MM);
 }
 
+static void learn_gap(leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_break_pa,
+                      leveler_settings *learnt, bool *changed);
+static bool line_point(leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_spring_pa,
+                       leveler_settings *learnt, bool *changed);
+
+/* An early probe's platform that broke away (moved its threshold) and came to rest without the rate
+ * window seeing a motion: it stopped where P2 is back on the line of its motion. That point teaches
+ * the line, the gap from where the last motion stopped, and is where this motion stopped. */
+static void probe_stop(leveler_alg3 *a, const leveler_settings *set, bool up, leveler_settings *learnt,
+                       bool *changed)
+{
+    leveler_alg3_watch *w = &a->watch;
+    if (leveler_alg3_probe_moved_um(a, up) < a->probe_moved_um) {
+        return;
+    }
+    unsigned newest = (a->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
+    int32_t p = w->p_spring_ring_pa[newest];
+    int8_t dir = up ? 1 : -1;
+    learn_gap(a, set, dir, p, learnt, changed);
+    w->line_fresh = line_point(a, set, dir, p, learnt, changed);
+    w->end_valid = true;
+    w->end_trusted = true;
+    w->end_dir = dir;
+    w->end_height_um = leveler_alg3_height_um(a);
+    w->end_p_spring_pa = p;
+}
+
 void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,
                               bool *changed)
 {
     leveler_alg3_watch *w = &a->watch;
     int64_t travel_um = (int64_t)leveler_alg3_height_um(a) - w->close_height_um;
     int64_t along_um = w->close_dir < 0 ? -travel_um : travel_um;
-    if (w->close_dir != 0 && along_um < LEVELER_ALG3_MOVED_UM && !w->line_fresh) {
+    bool probe = a->probe != LEVELER_ALG3_PROBE_NONE; /* commissioning judges its own probes */
+    if (!probe && w->close_dir != 0 && along_um < LEVELER_ALG3_MOVED_UM && !w->line_fresh) {
         /* closed on an estimate and nothing moved: the line lies beyond it;
          * fill or vent on until the platform breaks away */
         w->end_trusted = false; /* still the gap's reference point when the platform breaks away */
@@ -105,9 +133,12 @@ void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leve
         return;
     }
     bool up = w->close_dir > 0;
-    if (a->probe != LEVELER_ALG3_PROBE_NONE && w->line_fresh) {
+    if (probe && !w->line_fresh) {
+        probe_stop(a, set, up, learnt, changed);
+    }
+    if (probe && w->line_fresh) {
         /* a probe closed before its break-away was seen: the excess counts from the line learnt since */
-        w->close_line_pa = leveler_alg3_line_estimate(a, set, up, w->close_height_um);
+        w->close_line_pa = leveler_alg3_line_estimate(a, *changed ? learnt : set, up, w->close_height_um);
     }
     int32_t old_tau = up ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
     int32_t old_k = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
@@ -222,7 +253,7 @@ void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_
     bool learn = set->alg3_learn != 0u;
     if (rate > LEVELER_ALG3_MOVING_UM_S || rate < -LEVELER_ALG3_MOVING_UM_S) {
         int8_t dir = rate > 0 ? 1 : -1;
-        if (a->phase == LEVELER_ALG3_IDLE) {
+        if (a->phase == LEVELER_ALG3_IDLE && !a->commissioning) {
             w->lines_valid = false; /* nobody asked for this motion: the load has changed */
         }
         /* a probe closes on the first millimetre, before the rate window sees the motion: its settle's */

@@ -6,6 +6,8 @@
 
 #include <string.h>
 
+#include "leveler/fixed_point.h"
+
 
 void leveler_commission_init(leveler_commission *c)
 {
@@ -24,6 +26,7 @@ static void finish(leveler_commission *c, leveler_alg3 *a, const leveler_setting
     next.commission_down_pa = result == LEVELER_COMMISSION_REFUSED ? set->commission_down_pa : c->down_pa;
     (void)leveler_settings_apply(&next); /* within range by construction */
     a->hold = false;
+    a->commissioning = false;
     a->watch.adopt = 0;
     cmd->commission = false;
     c->step = LEVELER_COMMISSION_OFF;
@@ -51,30 +54,37 @@ static void start(leveler_commission *c, leveler_alg3 *a, const leveler_settings
     a->watch.lines_valid = false;
     a->watch.adopt = LEVELER_ALG3_ADOPT_ALL;
     a->hold = true;
+    a->commissioning = true;
     c->up_pa = 0;
     c->down_pa = 0;
     c->step = LEVELER_COMMISSION_REST;
 }
 
-/* Algorithm 3 idle and the platform at rest long enough, and then no creep (a platform creeping slower
- * than the rate calls moving): the next probe may start, or the end be judged. */
+/* Algorithm 3 idle (a move's settle over) and the platform moving less than CREEP in CREEP_MS (a creep
+ * slower than the rate calls moving is no rest; the rate itself is too noisy to wait for): the next probe
+ * may start, or the end be judged. */
 static bool quiet(leveler_commission *c, const leveler_alg3 *a, uint32_t now_ms)
 {
     int32_t h = leveler_alg3_height_um(a);
-    bool still = a->primed && a->phase == LEVELER_ALG3_IDLE && a->watch.still_ms >= LEVELER_COMMISSION_REST_MS;
+    bool still = a->primed && a->phase == LEVELER_ALG3_IDLE;
     int64_t crept = (int64_t)h - c->rest_um;
     if (!still || crept > LEVELER_COMMISSION_CREEP_UM || crept < -LEVELER_COMMISSION_CREEP_UM) {
         c->rest_um = h;
         c->rest_ms = now_ms;
+        c->spread_um = 0;
         return false;
     }
+    crept = crept < 0 ? -crept : crept;
+    c->spread_um = crept > c->spread_um ? (int32_t)crept : c->spread_um;
     return now_ms - c->rest_ms >= LEVELER_COMMISSION_CREEP_MS;
 }
 
 static void probe(leveler_commission *c, leveler_alg3 *a, bool up, uint8_t kind, uint32_t now_ms)
 {
-    /* alg3's move direction: -1 fills (a departure below), +1 vents */
-    if (leveler_alg3_probe(a, up ? -1 : 1, kind, now_ms)) {
+    /* alg3's move direction: -1 fills (a departure below), +1 vents; an early probe closes once moved
+     * twice what the height strayed at rest (noise) */
+    int32_t moved_um = leveler_sat_i32(2 * (int64_t)c->spread_um + LEVELER_ALG3_PROBE_MOVED_MIN_UM);
+    if (leveler_alg3_probe(a, up ? -1 : 1, kind, moved_um, now_ms)) {
         c->step = up ? LEVELER_COMMISSION_PROBE_UP : LEVELER_COMMISSION_PROBE_DOWN;
     }
 }
@@ -103,6 +113,8 @@ static void advance(leveler_commission *c, leveler_alg3 *a, const leveler_settin
         probe(c, a, false, LEVELER_ALG3_PROBE_BREAK, now_ms);
     } else if (c->step == LEVELER_COMMISSION_PROBE_DOWN) {
         c->down_pa = set->alg3_down_pa;
+        probe(c, a, true, LEVELER_ALG3_PROBE_EARLY, now_ms);
+    } else if (c->step == LEVELER_COMMISSION_PROBE_UP && !a->watch.line_fresh) {
         probe(c, a, true, LEVELER_ALG3_PROBE_BREAK, now_ms);
     } else if (c->step == LEVELER_COMMISSION_PROBE_UP) {
         c->up_pa = set->alg3_up_pa;

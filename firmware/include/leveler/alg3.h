@@ -90,14 +90,15 @@ typedef enum {
 #define LEVELER_ALG3_GAP_MIN_PA 5000
 #define LEVELER_ALG3_GAP_MAX_PA 300000
 #define LEVELER_ALG3_PROBE_REACH_UM 12700 /* a probe closes 0.5 in from where it started whatever it saw */
-#define LEVELER_ALG3_PROBE_MOVED_UM 1000  /* a break-away probe closes once moved this far (above noise) */
+#define LEVELER_ALG3_PROBE_MOVED_MIN_UM 250   /* an early probe closes once moved this far at least ... */
+#define LEVELER_ALG3_PROBE_MOVED_MAX_UM 2540  /* ... (more with sensor noise: the caller's) and at most */
 
 /* A commissioning probe (commission.h): a move that ends at what it is to show, not at the target. */
 typedef enum {
     LEVELER_ALG3_PROBE_NONE = 0,
     LEVELER_ALG3_PROBE_BREAK = 1, /* closes once the platform broke away (the learner saw the motion) */
-    LEVELER_ALG3_PROBE_EARLY = 2  /* ... or moved PROBE_MOVED from its start, whichever is first: less excess
-                                   * for a fast vent; the learner needs the coast to show the motion */
+    LEVELER_ALG3_PROBE_EARLY = 2  /* ... or moved probe_moved_um from its start, whichever is first: less
+                                   * excess; the line is then learnt where the platform stops */
 } leveler_alg3_probe_kind;
 
 /* watch.adopt bits: the next observation replaces the setting instead of moving it halfway (commissioning
@@ -155,7 +156,9 @@ typedef struct {
     uint16_t moves;
     uint8_t probe;            /* leveler_alg3_probe_kind of the present move */
     int32_t probe_from_um;    /* where the probe started */
-    bool hold;                /* commissioning in charge: idle acts on no departure (commission.h) */
+    int32_t probe_moved_um;   /* an early probe closes once moved this far */
+    bool hold;                /* commissioning in charge: idle acts on no departure (commissioning.h) */
+    bool commissioning;       /* the load is held: a motion nobody asked for is a creep, not a load change */
     leveler_dwell dwell;
     leveler_alg3_watch watch;
 } leveler_alg3;
@@ -174,9 +177,13 @@ leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings 
                                         bool held, leveler_outputs *out, leveler_settings *learnt,
                                         bool *learnt_changed);
 
-/* Commissioning (commission.h): start a probe move, fill (dir < 0 as for a departure below: -1) or vent
- * (+1), of the given kind; without the accumulator. Only from idle: returns false otherwise. */
-bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, uint32_t now_ms);
+/* Commissioning (commissioning.h): start a probe move, fill (dir < 0 as for a departure below: -1) or
+ * vent (+1), of the given kind (an early one closes once moved moved_um, clamped to PROBE_MOVED_MIN..MAX);
+ * the accumulator only for the first half of a fill's way up. Only from idle: returns false otherwise. */
+bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, int32_t moved_um, uint32_t now_ms);
+
+/* How far the platform moved the probe's way since the present (or last) probe started, um. */
+int32_t leveler_alg3_probe_moved_um(const leveler_alg3 *a, bool up);
 
 /* The outputs actually driven this tick (after the supervisor), for the dwell timers. */
 void leveler_alg3_driven(leveler_alg3 *a, const leveler_outputs *driven, uint32_t now_ms);

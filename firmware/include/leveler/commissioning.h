@@ -66,6 +66,7 @@ typedef struct {
     int32_t down_pa;
     int32_t rest_um; /* where the platform was when it last looked at rest, since rest_ms */
     uint32_t rest_ms;
+    int32_t spread_um; /* the farthest the height strayed from rest_um since (sensor noise at rest) */
 } leveler_commission;
 
 void leveler_commission_init(leveler_commission *c);
