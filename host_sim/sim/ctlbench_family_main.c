@@ -169,11 +169,14 @@ static cJSON *json_rig(const rig_result *r)
     return o;
 }
 
+static size_t worst_commissioned(const rig_result *r, size_t n);
+
 static int write_json(const char *out, const rig_result *r, size_t n, size_t worst)
 {
     cJSON *root = cJSON_CreateObject();
     cJSON_AddNumberToObject(root, "noise_counts", NOISE_COUNTS);
     cJSON_AddStringToObject(root, "worst", r[worst].rig.file);
+    cJSON_AddStringToObject(root, "worst_commissioned", r[worst_commissioned(r, n)].rig.file);
     cJSON *list = cJSON_AddArrayToObject(root, "rigs");
     for (size_t i = 0; i < n; i++)
         cJSON_AddItemToArray(list, json_rig(&r[i]));
@@ -261,6 +264,15 @@ static void print_table(const rig_result *r, size_t n, size_t w, int seed)
            r[w].worst, r[w].a3.rest_switchings, r[w].a3.overshoot_max_m * IN_PER_M);
 }
 
+/* The worst rig after commissioning: the largest return ratio. */
+static size_t worst_commissioned(const rig_result *r, size_t n)
+{
+    size_t w = 0;
+    for (size_t i = 1; i < n; i++)
+        w = r[i].worst_c > r[w].worst_c ? i : w;
+    return w;
+}
+
 /* After commissioning: every step's return against its limit (target 1.5x), overshoot (0.05 in). */
 static void print_commissioned(const rig_result *r, size_t n)
 {
@@ -268,11 +280,10 @@ static void print_commissioned(const rig_result *r, size_t n)
            "same noise):\n", LEVELER_COMMISSION_MAX_MS / 1000.0 + 5.0);
     printf("  %-10s %-9s %6s %8s %8s %8s %8s %8s %8s %9s %6s\n", "rig", "commiss.", "took", "+200 a3", "limit",
            "ratio", "-200 a3", "limit", "ratio", "overshoot", "unset");
-    size_t w = 0;
+    size_t w = worst_commissioned(r, n);
     unsigned done = 0, within = 0, calm = 0;
     for (size_t i = 0; i < n; i++) {
         print_rig_commissioned(&r[i]);
-        w = r[i].worst_c > r[w].worst_c ? i : w;
         done += r[i].commission_result == 1u;
         within += r[i].worst_c <= 1.5;
         calm += r[i].a3c.overshoot_max_m * IN_PER_M <= 0.05;
