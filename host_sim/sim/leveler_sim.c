@@ -168,7 +168,7 @@ static int parse_args(int argc, char **argv, sim_args *a)
     if (a->commission && a->config && !a->schedule && !a->summary && !a->plot && !a->algorithm)
         return CLI_CONTINUE;
     if (a->commission) {
-        fprintf(stderr, "leveler-sim: --commission takes --config, --log and --end-s only\n");
+        fprintf(stderr, "leveler-sim: --commission needs --config FILE and takes only --log and --end-s besides\n");
         return CLI_EXIT_BAD_INPUT;
     }
     if (!a->config || !a->log) {
