@@ -8,7 +8,6 @@
 
 #include "leveler/fixed_point.h"
 
-
 void leveler_commission_init(leveler_commission *c)
 {
     memset(c, 0, sizeof(*c));

@@ -57,7 +57,7 @@ static void test_timeout_when_nothing_moves(void **state)
     assert_int_equal(read_ir_u16(LEVELER_IR_COMMISSION_STEP), LEVELER_COMMISSION_REST);
     assert_int_equal(read_coil(LEVELER_COIL_COMMISSION), 1);
     assert_int_equal(read_hr_i32(LEVELER_HR_ALG3_UP_PA), 0); /* another load's lines forgotten */
-    run_ticks(400); /* 1 s still, then 2 s without creep */
+    run_ticks(400); /* idle, and 2 s without creep */
     assert_int_equal(read_ir_u16(LEVELER_IR_COMMISSION_STEP), LEVELER_COMMISSION_PROBE_DOWN);
     assert_true(venting());
     run_ticks(LEVELER_COMMISSION_MAX_MS / LEVELER_TICK_MS - 420u);

@@ -3,19 +3,24 @@
  * the coil `commission` starts a short identification sequence that algorithm
  * 3 runs on its own outputs, under the safety supervisor like any move, and
  * feeds to its own learner (alg3_learn.c):
- *   1. rest: all valves shut until the platform has been at rest for 1 s;
- *   2. a vent probe: vent until the platform breaks away, then close: the
- *      break-away pressure is the down line, the travel after the close
- *      against the excess at it the coast stiffness down;
- *   3. a fill probe: fill until the platform breaks away (the first half of
- *      the gap with the accumulator when one is fitted, then the compressor
- *      alone: a small excess), then close: the up line, the gap from where
- *      the vent probe's motion stopped, the coast stiffness up. Vent first:
- *      the fill ends on the up line with little travel, so the levelling
- *      after it fills from that line without crossing the gap again;
+ *   1. rest: all valves shut until algorithm 3 is idle and the platform has
+ *      moved less than CREEP in CREEP_MS; how far the height strayed meanwhile
+ *      is the sensor noise the probes must see past;
+ *   2. a vent probe: vent until the platform has moved twice that noise plus
+ *      LEVELER_ALG3_PROBE_MOVED_MIN_UM, then close (the rate window sees a
+ *      break-away late, and the excess vented meanwhile carries a lightly
+ *      damped platform far): where it comes to rest P2 is on the down line;
+ *      the travel after the close against the excess at it is the coast
+ *      stiffness down. If that taught no line, again, closing at the
+ *      break-away the rate window sees;
+ *   3. a fill probe, the same (the accumulator, when fitted, only for the
+ *      first half of the way up from the down line): the up line, the gap
+ *      from stop to stop, the coast stiffness up. Vent first: the fill ends on
+ *      the up line with little travel, so the levelling after it fills from
+ *      that line without crossing the gap again;
  *   4. level: algorithm 3 takes over with the lines learnt and brings the
- *      platform into the band (nothing to do when it is in it), and the
- *      routine ends once it is at rest inside.
+ *      platform into the band (nothing to do when it is in it); the routine
+ *      ends once it is at rest inside and its creep would not carry it out.
  * The learnt values are settings (kept in flash); the first observation of
  * the gap and of each coast stiffness and time replaces the default instead
  * of moving it halfway. The outcome, its duration and the two lines learnt
@@ -35,8 +40,7 @@
 #include "leveler/status.h"
 
 #define LEVELER_COMMISSION_MAX_MS 60000u
-#define LEVELER_COMMISSION_REST_MS 1000u /* at rest this long before a probe and at the end ... */
-#define LEVELER_COMMISSION_CREEP_UM 1000  /* ... and then moved less than this (above sensor noise) ... */
+#define LEVELER_COMMISSION_CREEP_UM 1000  /* at rest: moved less than this (above sensor noise) ... */
 #define LEVELER_COMMISSION_CREEP_MS 2000u /* ... in this long (a slow creep is no rest) */
 #define LEVELER_COMMISSION_CREEP_PROJECT 2 /* the end: the last window's creep, 2 more of it, stays inside */
 
