@@ -315,6 +315,12 @@ static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t h, ui
     uint32_t in_phase = now_ms - a->phase_start_ms;
     bool at_rest = a->watch.still_ms >= LEVELER_ALG3_SETTLE_REST_MS;
     if (at_rest || in_phase >= set->alg3_settle_ms) {
+        if (a->probe != LEVELER_ALG3_PROBE_NONE) {
+            /* a probe's coast may creep on below the rate's rest: commissioning learns from it once
+             * the platform has truly stopped (leveler_alg3_probe_learn) */
+            enter(a, LEVELER_ALG3_IDLE, now_ms);
+            return;
+        }
         if (at_rest) {
             leveler_alg3_learn_coast(a, set, learnt, changed);
         }

@@ -158,6 +158,14 @@ void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leve
     }
 }
 
+void leveler_alg3_probe_learn(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,
+                              bool *changed)
+{
+    leveler_alg3_learn_coast(a, set, learnt, changed);
+    a->watch.close_valid = false;
+    a->watch.close_dir = 0;
+}
+
 /* P2 where the present motion began or ended: the rate (a difference over the
  * window, on a filtered height) crosses its threshold about a window after
  * the platform starts or stops, while a fill may push P2 on at several psi/s;

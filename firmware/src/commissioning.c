@@ -98,6 +98,17 @@ static bool stays_in_band(const leveler_commission *c, const leveler_alg3 *a, co
            ahead <= set->band_upper_um;
 }
 
+/* What the probe just ended taught, into the settings (the platform has stopped: quiet()). */
+static void learn_probe(leveler_alg3 *a, const leveler_settings *set)
+{
+    leveler_settings learnt;
+    bool changed = false;
+    leveler_alg3_probe_learn(a, set, &learnt, &changed);
+    if (changed) {
+        (void)leveler_settings_apply(&learnt); /* validated; a refused value leaves the old one */
+    }
+}
+
 /* The sequence: rest, a vent probe (closed early; again closed at the break-away when that taught no
  * line), a fill probe, level. */
 static void advance(leveler_commission *c, leveler_alg3 *a, const leveler_settings *set, leveler_command *cmd,
@@ -105,6 +116,9 @@ static void advance(leveler_commission *c, leveler_alg3 *a, const leveler_settin
 {
     if (!quiet(c, a, now_ms)) {
         return;
+    }
+    if (c->step == LEVELER_COMMISSION_PROBE_DOWN || c->step == LEVELER_COMMISSION_PROBE_UP) {
+        learn_probe(a, set);
     }
     if (c->step == LEVELER_COMMISSION_REST) {
         probe(c, a, false, LEVELER_ALG3_PROBE_EARLY, now_ms);

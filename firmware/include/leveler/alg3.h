@@ -182,6 +182,11 @@ leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings 
  * the accumulator only for the first half of a fill's way up. Only from idle: returns false otherwise. */
 bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, int32_t moved_um, uint32_t now_ms);
 
+/* Learn from the last probe (coast, and the line where it stopped: leveler_alg3_learn_coast), once the
+ * caller has seen the platform stop; its settle does not (a slow creep goes on below the rate's rest). */
+void leveler_alg3_probe_learn(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,
+                              bool *changed);
+
 /* How far the platform moved the probe's way since the present (or last) probe started, um. */
 int32_t leveler_alg3_probe_moved_um(const leveler_alg3 *a, bool up);
 
