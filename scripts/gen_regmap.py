@@ -122,8 +122,11 @@ def validate(path, doc):
             err("type", f"type {typ!r} does not fit table {table!r} (bits only in coil/discrete)")
         if table in ("input", "discrete") and access != "R":
             err("access", f"table {table!r} is read-only")
-        if m.group(1) == "settings" and access != "RW":
-            err("access", "settings are writable (RW)")
+        if m.group(1) == "settings" and table != "holding":
+            err("access", "settings are holding registers")
+        if m.group(1) == "settings" and access == "R" and "default" not in r:
+            # R settings are the firmware's own records kept in flash (commissioning result)
+            err("access", "a read-only setting needs a default")
         if m.group(1) == "status" and access != "R":
             err("access", "status is read-only (R)")
         _, words, tmin, tmax = TYPES[typ]

@@ -174,10 +174,31 @@ static void start_move(leveler_alg3 *a, int8_t dir, int64_t off_um, uint32_t now
     enter(a, dir < 0 ? LEVELER_ALG3_FILLING : LEVELER_ALG3_VENTING, now_ms);
     a->watch.line_fresh = false;
     a->moves = leveler_sat_inc_u16(a->moves);
+    a->probe = LEVELER_ALG3_PROBE_NONE;
+}
+
+bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, int32_t moved_um, uint32_t now_ms)
+{
+    if (a->phase != LEVELER_ALG3_IDLE || !a->primed) {
+        return false;
+    }
+    a->retry = false;
+    start_move(a, dir, 0, now_ms);
+    a->fine = false;
+    a->use_acc = dir < 0; /* a fill: until half way up (moving()), then never again in this probe */
+    a->probe = kind;
+    a->probe_from_um = leveler_alg3_height_um(a);
+    a->probe_moved_um = moved_um < LEVELER_ALG3_PROBE_MOVED_MIN_UM   ? LEVELER_ALG3_PROBE_MOVED_MIN_UM
+                        : moved_um > LEVELER_ALG3_PROBE_MOVED_MAX_UM ? LEVELER_ALG3_PROBE_MOVED_MAX_UM
+                                                                     : moved_um;
+    return true;
 }
 
 static void idle(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms)
 {
+    if (a->hold) {
+        return; /* commissioning decides when to move */
+    }
     int8_t dir = departure(a, set, h, now_ms);
     if (dir != 0) {
         bool fast = fast_departure(a, set, h) != 0;
@@ -239,7 +260,24 @@ static bool burst_done(leveler_alg3 *a, bool up, int32_t p_spring_pa, int32_t li
     return a->bursting && now_ms - a->burst_start_ms >= a->burst_ms;
 }
 
-/* Filling or venting: close when leveler_alg3_close_now() says so, or a burst is done. */
+/* How far the platform moved the probe's way since it started (um). */
+int32_t leveler_alg3_probe_moved_um(const leveler_alg3 *a, bool up)
+{
+    int32_t h = leveler_alg3_height_um(a);
+    return leveler_sat_i32(up ? (int64_t)h - a->probe_from_um : (int64_t)a->probe_from_um - h);
+}
+
+/* A probe's end: the break-away seen (the learner registered a motion the probe's way), or (an early
+ * probe) moved probe_moved_um from its start, seen sooner than the rate window sees a motion (the
+ * learner takes the line where it stops, alg3_learn.c), or PROBE_REACH whatever was seen. */
+static bool probe_done(const leveler_alg3 *a, bool up)
+{
+    int32_t moved = leveler_alg3_probe_moved_um(a, up);
+    bool early = a->probe == LEVELER_ALG3_PROBE_EARLY && moved >= a->probe_moved_um;
+    return early || moved > LEVELER_ALG3_PROBE_REACH_UM || a->watch.motion == (up ? 1 : -1);
+}
+
+/* Filling or venting: close when leveler_alg3_close_now() says so, or a burst is done (a probe: probe_done). */
 static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int32_t p_spring_pa, uint32_t now_ms)
 {
     bool up = a->phase == LEVELER_ALG3_FILLING;
@@ -247,7 +285,15 @@ static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int3
     bool burst = burst_done(a, up, p_spring_pa, line, now_ms);
     /* the line broke away from in this move is the present load's: its coast needs no stretch */
     bool sure = a->watch.line_fresh;
-    if (leveler_alg3_close_now(set, up, h, leveler_alg3_prediction_rate(a), p_spring_pa, line, sure) || burst) {
+    bool done = a->probe != LEVELER_ALG3_PROBE_NONE
+                    ? probe_done(a, up)
+                    : leveler_alg3_close_now(set, up, h, leveler_alg3_prediction_rate(a), p_spring_pa, line, sure);
+    if (a->probe != LEVELER_ALG3_PROBE_NONE && up) {
+        /* a probe crossing the gap draws on the accumulator for its first half (an estimated line: the
+         * other line's stop plus the gap), then breaks away on the compressor alone: a small excess */
+        a->use_acc = a->use_acc && line != 0 && (int64_t)p_spring_pa < (int64_t)line - set->alg3_gap_pa / 2;
+    }
+    if (done || burst) {
         leveler_alg3_note_close(a, up ? 1 : -1, p_spring_pa, line);
         enter(a, LEVELER_ALG3_SETTLING, now_ms);
     }
@@ -269,6 +315,12 @@ static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t h, ui
     uint32_t in_phase = now_ms - a->phase_start_ms;
     bool at_rest = a->watch.still_ms >= LEVELER_ALG3_SETTLE_REST_MS;
     if (at_rest || in_phase >= set->alg3_settle_ms) {
+        if (a->probe != LEVELER_ALG3_PROBE_NONE) {
+            /* a probe's coast may creep on below the rate's rest: commissioning learns from it once
+             * the platform has truly stopped (leveler_alg3_probe_learn) */
+            enter(a, LEVELER_ALG3_IDLE, now_ms);
+            return;
+        }
         if (at_rest) {
             leveler_alg3_learn_coast(a, set, learnt, changed);
         }

@@ -44,20 +44,31 @@ static int32_t towards(int32_t old, int64_t seen, int32_t lo, int32_t hi)
     return (int32_t)(((int64_t)old + seen + 1) / 2);
 }
 
+/* towards(), or (the adopt bit set: commissioning) seen itself when within [lo, hi], clearing the bit. */
+static int32_t learnt_value(leveler_alg3_watch *w, uint8_t bit, int32_t old, int64_t seen, int32_t lo, int32_t hi)
+{
+    if ((w->adopt & bit) != 0u && seen >= lo && seen <= hi) {
+        w->adopt = (uint8_t)(w->adopt & ~bit);
+        return (int32_t)seen;
+    }
+    return towards(old, seen, lo, hi);
+}
+
 /* Coast time: travel / rate at the close (a close slower than
  * COAST_MIN_RATE teaches none). */
-static int32_t coast_time_seen(const leveler_alg3_watch *w, int64_t travel_um, int32_t old)
+static int32_t coast_time_seen(leveler_alg3_watch *w, bool up, int64_t travel_um, int32_t old)
 {
     if (!w->close_valid) {
         return old;
     }
     int64_t rate = w->close_rate_um_s;
     int64_t tau_ms = leveler_div_round_i64(travel_um * 1000 * (rate < 0 ? -1 : 1), rate < 0 ? -rate : rate);
-    return towards(old, tau_ms, LEVELER_ALG3_COAST_MIN_MS, LEVELER_ALG3_COAST_MAX_MS);
+    uint8_t bit = up ? LEVELER_ALG3_ADOPT_TAU_UP : LEVELER_ALG3_ADOPT_TAU_DOWN;
+    return learnt_value(w, bit, old, tau_ms, LEVELER_ALG3_COAST_MIN_MS, LEVELER_ALG3_COAST_MAX_MS);
 }
 
 /* Coast stiffness: the excess over the line at the close / the travel it gave. */
-static int32_t coast_k_seen(const leveler_alg3_watch *w, bool up, int64_t travel_um, int32_t old)
+static int32_t coast_k_seen(leveler_alg3_watch *w, bool up, int64_t travel_um, int32_t old)
 {
     if (w->close_line_pa == 0) {
         return old;
@@ -69,10 +80,39 @@ static int32_t coast_k_seen(const leveler_alg3_watch *w, bool up, int64_t travel
         return old;
     }
     int64_t seen = leveler_div_round_i64(excess * 1000, along_um);
-    if (seen * LEVELER_ALG3_K_FACTOR < old || seen > (int64_t)old * LEVELER_ALG3_K_FACTOR) {
+    uint8_t bit = up ? LEVELER_ALG3_ADOPT_K_UP : LEVELER_ALG3_ADOPT_K_DOWN;
+    bool adopt = (w->adopt & bit) != 0u; /* commissioning: the default may be far off on a new rig */
+    if (!adopt && (seen * LEVELER_ALG3_K_FACTOR < old || seen > (int64_t)old * LEVELER_ALG3_K_FACTOR)) {
         return old; /* a coast disturbed (a load change in it) teaches nothing */
     }
-    return towards(old, seen, LEVELER_ALG3_K_MIN_PA_PER_MM, LEVELER_ALG3_K_MAX_PA_PER_MM);
+    return learnt_value(w, bit, old, seen, LEVELER_ALG3_K_MIN_PA_PER_MM, LEVELER_ALG3_K_MAX_PA_PER_MM);
+}
+
+static void learn_gap(leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_break_pa,
+                      leveler_settings *learnt, bool *changed);
+static bool line_point(leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_spring_pa,
+                       leveler_settings *learnt, bool *changed);
+
+/* An early probe's platform that broke away (moved its threshold) and came to rest without the rate
+ * window seeing a motion: it stopped where P2 is back on the line of its motion. That point teaches
+ * the line, the gap from where the last motion stopped, and is where this motion stopped. */
+static void probe_stop(leveler_alg3 *a, const leveler_settings *set, bool up, leveler_settings *learnt,
+                       bool *changed)
+{
+    leveler_alg3_watch *w = &a->watch;
+    if (leveler_alg3_probe_moved_um(a, up) < a->probe_moved_um) {
+        return;
+    }
+    unsigned newest = (a->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
+    int32_t p = w->p_spring_ring_pa[newest];
+    int8_t dir = up ? 1 : -1;
+    learn_gap(a, set, dir, p, learnt, changed);
+    w->line_fresh = line_point(a, set, dir, p, learnt, changed);
+    w->end_valid = true;
+    w->end_trusted = true;
+    w->end_dir = dir;
+    w->end_height_um = leveler_alg3_height_um(a);
+    w->end_p_spring_pa = p;
 }
 
 void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,
@@ -81,7 +121,8 @@ void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leve
     leveler_alg3_watch *w = &a->watch;
     int64_t travel_um = (int64_t)leveler_alg3_height_um(a) - w->close_height_um;
     int64_t along_um = w->close_dir < 0 ? -travel_um : travel_um;
-    if (w->close_dir != 0 && along_um < LEVELER_ALG3_MOVED_UM && !w->line_fresh) {
+    bool probe = a->probe != LEVELER_ALG3_PROBE_NONE; /* commissioning judges its own probes */
+    if (!probe && w->close_dir != 0 && along_um < LEVELER_ALG3_MOVED_UM && !w->line_fresh) {
         /* closed on an estimate and nothing moved: the line lies beyond it;
          * fill or vent on until the platform breaks away */
         w->end_trusted = false; /* still the gap's reference point when the platform breaks away */
@@ -92,9 +133,16 @@ void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leve
         return;
     }
     bool up = w->close_dir > 0;
+    if (probe && !w->line_fresh) {
+        probe_stop(a, set, up, learnt, changed);
+    }
+    if (probe && w->line_fresh) {
+        /* a probe closed before its break-away was seen: the excess counts from the line learnt since */
+        w->close_line_pa = leveler_alg3_line_estimate(a, *changed ? learnt : set, up, w->close_height_um);
+    }
     int32_t old_tau = up ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
     int32_t old_k = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
-    int32_t new_tau = coast_time_seen(w, travel_um, old_tau);
+    int32_t new_tau = coast_time_seen(w, up, travel_um, old_tau);
     int32_t new_k = coast_k_seen(w, up, travel_um, old_k);
     w->close_dir = 0;
     if (new_tau == old_tau && new_k == old_k) {
@@ -108,6 +156,14 @@ void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leve
         learnt->alg3_coast_down_ms = (uint16_t)new_tau;
         learnt->alg3_coast_k_down_pa_per_mm = new_k;
     }
+}
+
+void leveler_alg3_probe_learn(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,
+                              bool *changed)
+{
+    leveler_alg3_learn_coast(a, set, learnt, changed);
+    a->watch.close_valid = false;
+    a->watch.close_dir = 0;
 }
 
 /* P2 where the present motion began or ended: the rate (a difference over the
@@ -176,17 +232,17 @@ int32_t leveler_alg3_line_estimate(const leveler_alg3 *a, const leveler_settings
 
 /* The gap seen between where the last motion stopped on the other line and
  * this break-away (both of the present load), halfway into alg3_gap_pa. */
-static void learn_gap(const leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_break_pa,
+static void learn_gap(leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_break_pa,
                       leveler_settings *learnt, bool *changed)
 {
-    const leveler_alg3_watch *w = &a->watch;
+    leveler_alg3_watch *w = &a->watch;
     if (!w->end_valid || w->end_dir == dir) {
         return;
     }
     int32_t other = along_slope(set, w->end_p_spring_pa, w->end_height_um, leveler_alg3_height_um(a));
     int64_t gap = dir > 0 ? (int64_t)p_break_pa - other : (int64_t)other - p_break_pa;
     int32_t old = *changed ? learnt->alg3_gap_pa : set->alg3_gap_pa;
-    int32_t next = towards(old, gap, LEVELER_ALG3_GAP_MIN_PA, LEVELER_ALG3_GAP_MAX_PA);
+    int32_t next = learnt_value(w, LEVELER_ALG3_ADOPT_GAP, old, gap, LEVELER_ALG3_GAP_MIN_PA, LEVELER_ALG3_GAP_MAX_PA);
     if (next != old) {
         begin(set, learnt, changed);
         learnt->alg3_gap_pa = next;
@@ -205,11 +261,13 @@ void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_
     bool learn = set->alg3_learn != 0u;
     if (rate > LEVELER_ALG3_MOVING_UM_S || rate < -LEVELER_ALG3_MOVING_UM_S) {
         int8_t dir = rate > 0 ? 1 : -1;
-        if (a->phase == LEVELER_ALG3_IDLE) {
+        if (a->phase == LEVELER_ALG3_IDLE && !a->commissioning) {
             w->lines_valid = false; /* nobody asked for this motion: the load has changed */
         }
+        /* a probe closes on the first millimetre, before the rate window sees the motion: its settle's */
+        bool probed = a->probe != LEVELER_ALG3_PROBE_NONE && a->phase == LEVELER_ALG3_SETTLING && w->close_dir == dir;
         bool breaks_away = w->motion == 0 && ((dir > 0 && a->phase == LEVELER_ALG3_FILLING) ||
-                                              (dir < 0 && a->phase == LEVELER_ALG3_VENTING));
+                                              (dir < 0 && a->phase == LEVELER_ALG3_VENTING) || probed);
         if (learn && breaks_away) {
             int32_t p_break = p_spring_at_start(a);
             learn_gap(a, set, dir, p_break, learnt, changed);

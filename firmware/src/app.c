@@ -4,6 +4,7 @@
 
 #include "internal.h"
 #include "leveler/alg3.h"
+#include "leveler/commissioning.h"
 #include "leveler/control.h"
 #include "leveler/hal.h"
 #include "leveler/sensors.h"
@@ -14,6 +15,7 @@
 static leveler_sensors g_sensors;
 static leveler_supervisor g_supervisor;
 static leveler_alg3 g_alg3;
+static leveler_commission g_commission;
 static leveler_status g_status;
 static leveler_command g_command;
 static uint32_t g_start_ms;
@@ -80,6 +82,7 @@ void leveler_app_init(void)
     leveler_sensors_init(&g_sensors, g_start_ms);
     leveler_supervisor_init(&g_supervisor);
     leveler_alg3_init(&g_alg3, g_start_ms);
+    leveler_commission_init(&g_commission);
     memset(&g_command, 0, sizeof(g_command));
     /* hardware facts the board may report before init */
     bool clock_fault = g_status.clock_fault;
@@ -107,6 +110,13 @@ static leveler_control_state alg3_decide(const leveler_settings *set, const leve
     return band;
 }
 
+/* The commissioning routine's tick; a latched fault holding the safe state ends it. */
+static void commission_tick(const leveler_settings *set, uint32_t now_ms)
+{
+    bool held_by_fault = g_supervisor.outputs_safe && (g_supervisor.latched_bits & LEVELER_FAULTS_HOLDING_SAFE) != 0u;
+    leveler_commission_tick(&g_commission, &g_alg3, set, &g_command, held_by_fault, now_ms);
+}
+
 void leveler_app_tick(void)
 {
     const leveler_settings *set = leveler_settings_current();
@@ -128,7 +138,8 @@ void leveler_app_tick(void)
         .channels_used = used,
     };
 
-    /* 2. control (auto) or manual request, then the supervisor's word */
+    /* 2. commissioning (it drives algorithm 3), control (auto) or manual request, then the supervisor's word */
+    commission_tick(set, now_ms);
     leveler_outputs request;
     leveler_control_state band =
         (set->algorithm == (uint16_t)LEVELER_ALGO_HYSTERESIS_AWARE)
@@ -167,6 +178,7 @@ void leveler_app_tick(void)
     g_status.uptime_ms = now_ms - g_start_ms;
     g_status.alg3_phase = g_alg3.phase;
     g_status.alg3_moves = g_alg3.moves;
+    g_status.commission_step = g_commission.step;
     g_status.compressor_on = out.compressor;
     g_status.spring_valve_open = out.spring_valve;
     g_status.vent_valve_open = out.vent_valve;

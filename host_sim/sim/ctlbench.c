@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "leveler/commissioning.h"
 #include "leveler/regmap.h"
 #include "leveler/regmap_addr.h"
 #include "leveler/status.h"
@@ -58,6 +59,24 @@ void ctlbench_thesis_rest(ctlbench_scenario *sc, const char *name, const char *c
     sc->rest_from_s = 35.0 + REST_SETTLE_S;
     sc->rest_to_s = sc->rest_from_s + rest_s;
     sc->end_s = sc->rest_to_s;
+}
+
+void ctlbench_thesis_commissioned(ctlbench_scenario *sc, const char *name, const char *config_file, double noise,
+                                  uint32_t seed)
+{
+    double t0 = LEVELER_COMMISSION_MAX_MS / 1000.0;
+    memset(sc, 0, sizeof *sc);
+    snprintf(sc->name, sizeof sc->name, "%s", name);
+    snprintf(sc->config, sizeof sc->config, "%s", config_file);
+    sc->kind = CTLBENCH_THESIS;
+    sc->noise_counts = noise;
+    sc->noise_seed = seed;
+    sc->commission = true;
+    sc->steps[0] = (sim_load_step){.t_s = 0.0, .load_n = LOAD_900_N};
+    sc->steps[1] = (sim_load_step){.t_s = t0 + 5.0, .load_n = LOAD_900_N + STEP_N};
+    sc->steps[2] = (sim_load_step){.t_s = t0 + 35.0, .load_n = LOAD_900_N};
+    sc->step_count = 3;
+    sc->end_s = t0 + 35.0 + REST_SETTLE_S;
 }
 
 /* A config's name in scenario names: without the thesis- prefix the suite's own carry. */
@@ -334,7 +353,7 @@ int ctlbench_run(const ctlbench_scenario *sc, int algorithm, const char *configs
     if (ctlbench_config(sc, algorithm, configs_dir, &cfg, err, err_len) != 0)
         return -1;
     sim_options so = {.config = &cfg, .algorithm = algorithm, .steps = sc->steps, .step_count = sc->step_count,
-                      .end_s = sc->end_s, .rows = rows, .rows_cap = rows_cap};
+                      .end_s = sc->end_s, .rows = rows, .rows_cap = rows_cap, .commission = sc->commission};
     static sim_result res;
     if (ctlbench_simulate(sc, &so, log_path, &res, err, err_len) != 0)
         return -1;

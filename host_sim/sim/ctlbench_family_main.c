@@ -3,8 +3,10 @@
  * on over the perturbed rig family (ctlbench_family.h). Per rig: the 900 lb
  * thesis steps then 10 minutes at rest with 4 counts of sensor noise; it
  * prints the switchings at rest, each step's return against that rig's limit
- * (ctlbench_limit.h) and the overshoot, names the worst rig, and writes
- * DIR/family.json and the rigs' INI files in DIR.
+ * (ctlbench_limit.h) and the overshoot, names the worst rig; then the same
+ * steps after the firmware's commissioning routine (leveler/commissioning.h),
+ * against their limit, and the worst rig after it; writes DIR/family.json
+ * and the rigs' INI files in DIR.
  *
  *   leveler-ctlbench-family [--out DIR] [--configs DIR] [--rigs N] [--seed S]
  *
@@ -24,6 +26,9 @@
 #include "ctlbench.h"
 #include "ctlbench_family.h"
 #include "ctlbench_limit.h"
+#include "commissioning_run.h"
+#include "leveler/commissioning.h"
+#include "leveler/settings.h"
 
 #ifndef LEVELER_SOURCE_DIR
 #define LEVELER_SOURCE_DIR "."
@@ -39,6 +44,11 @@ typedef struct {
     ctlbench_metrics a3, lim;
     double ratio[2];  /* +200 lb, -200 lb: algorithm 3's return over the limit's */
     double worst;
+    /* after commissioning (ctlbench_thesis_commissioned): the steps against their limit */
+    ctlbench_metrics a3c, limc;
+    double ratio_c[2], worst_c;
+    uint16_t commission_result;
+    double commission_s;
 } rig_result;
 
 /* Algorithm 3's return over the limit's, the limit's taken as at least LOAD_S: a return within the first
@@ -51,7 +61,30 @@ static double ratio(const ctlbench_step *a3, const ctlbench_step *lim)
     return a3->return_s / (lim->return_s > LOAD_S ? lim->return_s : LOAD_S);
 }
 
-/* One rig: written, loaded by the config loader, run with algorithm 3 and its limit. */
+/* The rig after commissioning: the routine, then the thesis steps, against their limit. */
+static int run_commissioned(const char *out, rig_result *r, runlog_row *rows, size_t cap, char *err,
+                            size_t err_len)
+{
+    ctlbench_scenario sc;
+    char name[CTLBENCH_NAME_MAX];
+    snprintf(name, sizeof name, "%.*s-commissioned", (int)(strlen(r->rig.file) - 4), r->rig.file);
+    ctlbench_thesis_commissioned(&sc, name, r->rig.file, NOISE_COUNTS, 104u);
+    ctlbench_limit_moves mv;
+    if (ctlbench_run(&sc, 3, out, NULL, rows, cap, &r->a3c, err, err_len) != 0)
+        return -1;
+    r->commission_result = leveler_settings_current()->commission_result; /* the firmware after the run */
+    r->commission_s = leveler_settings_current()->commission_ms / 1000.0;
+    if (ctlbench_limit(&sc, out, NULL, rows, cap, &r->limc, &mv, err, err_len) != 0)
+        return -1;
+    r->worst_c = 0.0;
+    for (size_t k = 0; k < 2 && k < r->a3c.step_count; k++) {
+        r->ratio_c[k] = ratio(&r->a3c.step[k], &r->limc.step[k]);
+        r->worst_c = r->ratio_c[k] > r->worst_c ? r->ratio_c[k] : r->worst_c;
+    }
+    return 0;
+}
+
+/* One rig: written, loaded by the config loader, run with algorithm 3 and its limit, then commissioned. */
 static int run_rig(const char *out, const char *configs, rig_result *r, runlog_row *rows, size_t cap, char *err,
                    size_t err_len)
 {
@@ -70,7 +103,7 @@ static int run_rig(const char *out, const char *configs, rig_result *r, runlog_r
         r->ratio[k] = ratio(&r->a3.step[k], &r->lim.step[k]);
         r->worst = r->ratio[k] > r->worst ? r->ratio[k] : r->worst;
     }
-    return 0;
+    return run_commissioned(out, r, rows, cap, err, err_len);
 }
 
 static void print_rig(const rig_result *r)
@@ -79,6 +112,34 @@ static void print_rig(const rig_result *r)
     printf("  %-10s %8u %8.2f %8.2f %7.2fx %8.2f %8.2f %7.2fx %9.3f %6u %6.1f\n", r->rig.file, a->rest_switchings,
            a->step[0].return_s, l->step[0].return_s, r->ratio[0], a->step[1].return_s, l->step[1].return_s,
            r->ratio[1], a->overshoot_max_m * IN_PER_M, a->unsettled_steps, a->switchings_per_step);
+}
+
+static void print_rig_commissioned(const rig_result *r)
+{
+    const ctlbench_metrics *a = &r->a3c, *l = &r->limc;
+    printf("  %-10s %-9s %6.2f %8.2f %8.2f %7.2fx %8.2f %8.2f %7.2fx %9.3f %6u\n", r->rig.file,
+           sim_commissioning_result_name(r->commission_result), r->commission_s, a->step[0].return_s,
+           l->step[0].return_s, r->ratio_c[0], a->step[1].return_s, l->step[1].return_s, r->ratio_c[1],
+           a->overshoot_max_m * IN_PER_M, a->unsettled_steps);
+}
+
+static cJSON *json_commissioned(const rig_result *r)
+{
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddStringToObject(o, "result", sim_commissioning_result_name(r->commission_result));
+    cJSON_AddNumberToObject(o, "took_s", r->commission_s);
+    cJSON *steps = cJSON_AddArrayToObject(o, "steps");
+    for (size_t k = 0; k < 2; k++) {
+        cJSON *s = cJSON_CreateObject();
+        cJSON_AddNumberToObject(s, "alg3_return_s", r->a3c.step[k].return_s);
+        cJSON_AddNumberToObject(s, "limit_return_s", r->limc.step[k].return_s);
+        cJSON_AddNumberToObject(s, "ratio", isfinite(r->ratio_c[k]) ? r->ratio_c[k] : -1.0);
+        cJSON_AddNumberToObject(s, "switchings", r->a3c.step[k].switchings);
+        cJSON_AddItemToArray(steps, s);
+    }
+    cJSON_AddNumberToObject(o, "overshoot_in", r->a3c.overshoot_max_m * IN_PER_M);
+    cJSON_AddNumberToObject(o, "unsettled_steps", r->a3c.unsettled_steps);
+    return o;
 }
 
 static cJSON *json_rig(const rig_result *r)
@@ -104,14 +165,18 @@ static cJSON *json_rig(const rig_result *r)
     }
     cJSON_AddNumberToObject(o, "overshoot_in", r->a3.overshoot_max_m * IN_PER_M);
     cJSON_AddNumberToObject(o, "unsettled_steps", r->a3.unsettled_steps);
+    cJSON_AddItemToObject(o, "commissioned", json_commissioned(r));
     return o;
 }
+
+static size_t worst_commissioned(const rig_result *r, size_t n);
 
 static int write_json(const char *out, const rig_result *r, size_t n, size_t worst)
 {
     cJSON *root = cJSON_CreateObject();
     cJSON_AddNumberToObject(root, "noise_counts", NOISE_COUNTS);
     cJSON_AddStringToObject(root, "worst", r[worst].rig.file);
+    cJSON_AddStringToObject(root, "worst_commissioned", r[worst_commissioned(r, n)].rig.file);
     cJSON *list = cJSON_AddArrayToObject(root, "rigs");
     for (size_t i = 0; i < n; i++)
         cJSON_AddItemToArray(list, json_rig(&r[i]));
@@ -199,6 +264,36 @@ static void print_table(const rig_result *r, size_t n, size_t w, int seed)
            r[w].worst, r[w].a3.rest_switchings, r[w].a3.overshoot_max_m * IN_PER_M);
 }
 
+/* The worst rig after commissioning: the largest return ratio. */
+static size_t worst_commissioned(const rig_result *r, size_t n)
+{
+    size_t w = 0;
+    for (size_t i = 1; i < n; i++)
+        w = r[i].worst_c > r[w].worst_c ? i : w;
+    return w;
+}
+
+/* After commissioning: every step's return against its limit (target 1.5x), overshoot (0.05 in). */
+static void print_commissioned(const rig_result *r, size_t n)
+{
+    printf("\nafter commissioning (the routine from 0 s, then +200 lb %.0f s later, removed 30 s after; "
+           "same noise):\n", LEVELER_COMMISSION_MAX_MS / 1000.0 + 5.0);
+    printf("  %-10s %-9s %6s %8s %8s %8s %8s %8s %8s %9s %6s\n", "rig", "commiss.", "took", "+200 a3", "limit",
+           "ratio", "-200 a3", "limit", "ratio", "overshoot", "unset");
+    size_t w = worst_commissioned(r, n);
+    unsigned done = 0, within = 0, calm = 0;
+    for (size_t i = 0; i < n; i++) {
+        print_rig_commissioned(&r[i]);
+        done += r[i].commission_result == 1u;
+        within += r[i].worst_c <= 1.5;
+        calm += r[i].a3c.overshoot_max_m * IN_PER_M <= 0.05;
+    }
+    printf("commissioning done within 60 s on %u of %zu rigs; every step within 1.5x its limit on %u, overshoot "
+           "<= 0.05 in on %u\n", done, n, within, calm);
+    printf("worst rig after commissioning: %s (return %.2fx its limit, overshoot %.3f in, %u unsettled)\n",
+           r[w].rig.file, r[w].worst_c, r[w].a3c.overshoot_max_m * IN_PER_M, r[w].a3c.unsettled_steps);
+}
+
 int main(int argc, char **argv)
 {
     family_args a = {.out = "build/ctlfamily", .configs = LEVELER_SOURCE_DIR "/host_sim/configs", .rigs = 24,
@@ -230,5 +325,6 @@ int main(int argc, char **argv)
         return CLI_EXIT_FAILED;
     size_t w = worst_of(r, (size_t)a.rigs);
     print_table(r, (size_t)a.rigs, w, a.seed);
+    print_commissioned(r, (size_t)a.rigs);
     return write_json(a.out, r, (size_t)a.rigs, w) == 0 ? CLI_EXIT_OK : CLI_EXIT_FAILED;
 }

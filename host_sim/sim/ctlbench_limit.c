@@ -89,7 +89,7 @@ static int run_move(const ctlbench_scenario *sc, const plant_config *cfg, size_t
     static sim_load_step rows_in[LIMIT_ROWS];
     size_t n = schedule(sc, cfg, step, mv, rows_in);
     sim_options so = {.config = cfg, .algorithm = LIMIT_FIRMWARE_ALGORITHM, .steps = rows_in, .step_count = n,
-                      .end_s = end_s, .rows = rows, .rows_cap = rows_cap};
+                      .end_s = end_s, .rows = rows, .rows_cap = rows_cap, .commission = sc->commission};
     return sim_run(&so, res, err, err_len);
 }
 

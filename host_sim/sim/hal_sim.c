@@ -13,6 +13,7 @@
 #include "commission.h"
 #include "leveler/app.h"
 #include "leveler/regmap.h"
+#include "leveler/regmap_addr.h"
 
 static struct {
     uint16_t counts[HAL_ADC_COUNT];
@@ -25,6 +26,15 @@ int sim_firmware_start(const plant_config *cfg, int algorithm, char *err, size_t
     memset(&hal_state, 0, sizeof hal_state);
     leveler_app_init();
     return sim_commission(cfg, algorithm, err, err_len);
+}
+
+int sim_firmware_commission(char *err, size_t err_len)
+{
+    uint16_t one = 1, reason = 0;
+    if (leveler_regs_write(LEVELER_TABLE_COIL, LEVELER_COIL_COMMISSION, 1, &one, &reason) == LEVELER_REG_OK)
+        return 0;
+    snprintf(err, err_len, "firmware refused commission = 1 (reason %u)", reason);
+    return -1;
 }
 
 /* One register write of a schedule row; 0 or -1 with the refusal in w->err. */

@@ -4,6 +4,7 @@
  *   leveler-sim --config FILE [--schedule FILE] [--algorithm 1|2|3] --log run.csv
  *               [--summary run.json] [--plot run.png] [--units thesis|si] [--end-s S]
  *   leveler-sim --dump-config [--config FILE]
+ *   leveler-sim --commission --config FILE [--log run.csv] [--end-s S]
  *
  * Writes the run log (runlog.h format). With --summary/--plot it then runs
  *   $LEVELER_PYTHON -m leveler.report --log run.csv ... (PYTHONPATH=<source>/scripts)
@@ -20,12 +21,13 @@
 #include <string.h>
 
 #include "cli.h"
+#include "commissioning_run.h"
 #include "pyrun.h"
 #include "runlog_firmware.h"
 #include "simloop.h"
 
 enum { OPT_CONFIG = 0x100, OPT_LOG, OPT_SCHEDULE, OPT_ALGORITHM, OPT_SUMMARY, OPT_PLOT, OPT_UNITS, OPT_END_S,
-       OPT_DUMP, OPT_QUIET, OPT_FAIL_ON_FAULT };
+       OPT_DUMP, OPT_QUIET, OPT_FAIL_ON_FAULT, OPT_COMMISSION };
 
 static const cli_option sim_options_list[] = {
     {"config", OPT_CONFIG, "FILE", "plant, sensors, controller settings, scenario (docs/config-format.md)", 0},
@@ -45,6 +47,10 @@ static const cli_option sim_options_list[] = {
      "as JSON in SI units and exit (what scripts/leveler/config.py reads)", 0},
     {"quiet", OPT_QUIET, NULL, "no progress lines on long runs", 0},
     {"fail-on-fault", OPT_FAIL_ON_FAULT, NULL, "exit 1 when the supervisor latched a fault during the run", 0},
+    {"commission", OPT_COMMISSION, NULL,
+     "run the firmware's commissioning routine on the config's plant (base load\n"
+     "held, algorithm 3) and print what it learnt beside the plant's own lines and\n"
+     "the time it took; --log optional; exit 1 unless it is done within 60 s", 0},
     {NULL, 0, NULL, NULL, 0},
 };
 
@@ -53,7 +59,8 @@ static const cli_spec sim_cli = {
     .usage = "--config FILE [--schedule FILE] [--algorithm 1|2|3] --log run.csv\n"
              "[--summary run.json] [--plot run.png] [--units thesis|si] [--end-s S] [--quiet]\n"
              "[--fail-on-fault]\n"
-             "|--dump-config [--config FILE]",
+             "|--dump-config [--config FILE]\n"
+             "|--commission --config FILE [--log run.csv] [--end-s S]",
     .about = "The unchanged firmware against the plant model: writes the run log (docs/log-format.md).",
     .opts = sim_options_list,
 };
@@ -117,7 +124,7 @@ static int run_report(const char *log, const char *summary, const char *plot, co
 typedef struct {
     const char *config, *schedule, *log, *summary, *plot, *units;
     int algorithm; /* 0 = the config's */
-    int dump, quiet, fail_on_fault;
+    int dump, quiet, fail_on_fault, commission;
     double end_s;
 } sim_args;
 
@@ -134,6 +141,7 @@ static int parse_option(void *user, int key, const char *v)
     case OPT_DUMP: a->dump = 1; return 0;
     case OPT_QUIET: a->quiet = 1; return 0;
     case OPT_FAIL_ON_FAULT: a->fail_on_fault = 1; return 0;
+    case OPT_COMMISSION: a->commission = 1; return 0;
     case OPT_UNITS:
         if (strcmp(v, "thesis") != 0 && strcmp(v, "si") != 0)
             return cli_bad_value(&sim_cli, "units", v, "thesis or si");
@@ -157,6 +165,12 @@ static int parse_args(int argc, char **argv, sim_args *a)
     int rc = cli_parse(&sim_cli, argc, argv, parse_option, a, NULL);
     if (rc != CLI_CONTINUE || a->dump)
         return rc;
+    if (a->commission && a->config && !a->schedule && !a->summary && !a->plot && !a->algorithm)
+        return CLI_CONTINUE;
+    if (a->commission) {
+        fprintf(stderr, "leveler-sim: --commission needs --config FILE and takes only --log and --end-s besides\n");
+        return CLI_EXIT_BAD_INPUT;
+    }
     if (!a->config || !a->log) {
         fprintf(stderr, "leveler-sim: --config and --log are required (see leveler-sim --help)\n");
         return CLI_EXIT_BAD_INPUT;
@@ -244,6 +258,53 @@ static int simulate(const sim_args *a, int *not_thesis)
     return a->fail_on_fault && res.events.latched_bits ? 1 : 0;
 }
 
+static void print_commissioning(const sim_commissioning *c)
+{
+    const double psi = PLANT_PA_PER_PSI;
+    printf("commissioning: %s after %.2f s (%u moves of algorithm 3 in the run)\n",
+           sim_commissioning_result_name(c->result), c->took_s, c->moves);
+    printf("  up line at the target %.3f in: learnt %.2f psia, the plant's %.2f psia (%+.2f psi)\n",
+           c->target_m / PLANT_M_PER_IN, c->up_pa / psi, c->true_up_pa / psi, (c->up_pa - c->true_up_pa) / psi);
+    printf("  down line:                     learnt %.2f psia, the plant's %.2f psia (%+.2f psi)\n", c->down_pa / psi,
+           c->true_down_pa / psi, (c->down_pa - c->true_down_pa) / psi);
+    printf("  gap %.2f psi (lines %.2f psi apart); coast up %u ms, %d Pa/mm; coast down %u ms, %d Pa/mm\n",
+           c->gap_pa / psi, (c->true_up_pa - c->true_down_pa) / psi, c->coast_up_ms, c->k_up_pa_per_mm,
+           c->coast_down_ms, c->k_down_pa_per_mm);
+    printf("  platform %.3f in at the end of the run: %s the band\n", c->final_height_m / PLANT_M_PER_IN,
+           c->in_band ? "inside" : "OUTSIDE");
+}
+
+/* --commission: 0 done within 60 s and in the band, 1 not, 2 bad input. */
+static int commission(const sim_args *a)
+{
+    static plant_config cfg;
+    char err[1024];
+    if (plant_config_load(a->config, &cfg, err, sizeof err) != 0) {
+        fprintf(stderr, "leveler-sim: %s\n", err);
+        return 2;
+    }
+    runlog *rl = NULL;
+    if (a->log) {
+        runlog_options lo = {.path = a->log, .config_name = cfg.name, .source = "sim", .buffered = 1};
+        if (!(rl = runlog_open(&lo, err, sizeof err))) {
+            fprintf(stderr, "leveler-sim: %s\n", err);
+            return 2;
+        }
+    }
+    sim_commissioning c;
+    int rc = sim_commissioning_run(&cfg, a->end_s, rl, &c, err, sizeof err);
+    if (rl && runlog_close(rl) != 0 && rc == 0) {
+        fprintf(stderr, "leveler-sim: closing %s failed: %s\n", a->log, strerror(errno));
+        return 1;
+    }
+    if (rc != 0) {
+        fprintf(stderr, "leveler-sim: %s\n", err);
+        return 1;
+    }
+    print_commissioning(&c);
+    return c.result == 1 && c.in_band ? 0 : 1;
+}
+
 int main(int argc, char **argv)
 {
     sim_args a;
@@ -252,6 +313,8 @@ int main(int argc, char **argv)
         return rc;
     if (a.dump)
         return dump_config(a.config);
+    if (a.commission)
+        return commission(&a);
     int not_thesis = 1;
     rc = simulate(&a, &not_thesis);
     if (rc != 2 && (a.summary || a.plot)) {

@@ -111,6 +111,8 @@ int sim_run(const sim_options *o, sim_result *res, char *err, size_t err_len)
     plant_rng_seed(&rng, cfg->sensors.noise_seed);
     if (sim_firmware_start(cfg, o->algorithm ? o->algorithm : cfg->algorithm, err, err_len) != 0)
         return -1;
+    if (o->commission && sim_firmware_commission(err, err_len) != 0)
+        return -1;
     /* The run starts from a rig already running: the first tick keeps the
      * config's [initial] actuators and the firmware first decides at the end
      * of it, as Appendix B's controller does after its first step. */

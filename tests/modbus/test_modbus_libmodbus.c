@@ -351,6 +351,46 @@ static void test_write_coils_read_back(void **state) /* FC 05, 15 */
     assert_int_equal(modbus_write_bits(ctx, first, 4, off), 4);
 }
 
+/* The coil `commission` reads `want` within a second (the slave ticks every 10 ms; a loaded machine may
+ * run it late): true when it did. */
+static bool commission_coil_becomes(int coil, uint8_t want)
+{
+    uint8_t bit = (uint8_t)!want;
+    for (int i = 0; i < 100 && bit != want; i++) {
+        sleep_ms(10);
+        assert_int_equal(modbus_read_bits(ctx, coil, 1, &bit), 1);
+    }
+    return bit == want;
+}
+
+/* The commissioning command (coil commission) and its result over the wire: refused under algorithm 1
+ * (the default), running under algorithm 3 until the coil is written 0 (aborted); the result is a
+ * read-only holding register (kept in flash with the settings). */
+static void test_commission_coil_and_result(void **state)
+{
+    (void)state;
+    const int coil = spec_named("commission")->address;
+    assert_int_equal(read_holding("algorithm"), 1);
+    assert_int_equal(modbus_write_bit(ctx, coil, 1), 1);
+    assert_true(commission_coil_becomes(coil, 0)); /* the next tick refuses it */
+    assert_int_equal(read_holding("commission_result"), 4 /* refused */);
+    errno = 0;
+    assert_int_equal(write_holding("commission_result", 0), -1);
+    assert_int_equal(errno, EMBXILVAL);
+
+    assert_int_equal(write_holding("algorithm", 3), 1);
+    assert_int_equal(modbus_write_bit(ctx, coil, 1), 1);
+    sleep_ms(50);
+    assert_true(commission_coil_becomes(coil, 1)); /* running: it stays 1 */
+    assert_true(read_input("commission_step") >= 1);
+    assert_int_equal(modbus_write_bit(ctx, coil, 0), 1);
+    for (int i = 0; i < 100 && read_input("commission_step") != 0; i++)
+        sleep_ms(10);
+    assert_int_equal(read_input("commission_step"), 0);
+    assert_int_equal(read_holding("commission_result"), 3 /* aborted */);
+    assert_int_equal(write_holding("algorithm", 1), 1);
+}
+
 /* ---- exceptions ---------------------------------------------------------------- */
 
 static void test_exception_01_illegal_function(void **state)
@@ -542,6 +582,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_input_registers_show_the_hal_and_time),
         cmocka_unit_test(test_discrete_inputs_show_the_outputs),
         cmocka_unit_test(test_coils_read),
+        cmocka_unit_test(test_commission_coil_and_result),
         cmocka_unit_test(test_write_single_register_reads_back),
         cmocka_unit_test(test_write_multiple_registers_reads_back),
         cmocka_unit_test(test_write_coils_read_back),

@@ -19,7 +19,7 @@ static void test_table_sizes(void **state)
     (void)state;
     assert_int_equal(leveler_regs_table_size(LEVELER_TABLE_HOLDING_REGISTER), LEVELER_HR_TABLE_SIZE);
     assert_int_equal(leveler_regs_table_size(LEVELER_TABLE_INPUT_REGISTER), LEVELER_IR_TABLE_SIZE);
-    assert_int_equal(leveler_regs_table_size(LEVELER_TABLE_COIL), 5);
+    assert_int_equal(leveler_regs_table_size(LEVELER_TABLE_COIL), 6);
     assert_int_equal(leveler_regs_table_size(LEVELER_TABLE_DISCRETE_INPUT), 10); /* registers.json: 0..9 */
     assert_int_equal(leveler_regs_table_size((leveler_table)9), 0);
 }

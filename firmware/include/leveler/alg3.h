@@ -89,6 +89,26 @@ typedef enum {
 #define LEVELER_ALG3_EARLY_DEN 4
 #define LEVELER_ALG3_GAP_MIN_PA 5000
 #define LEVELER_ALG3_GAP_MAX_PA 300000
+#define LEVELER_ALG3_PROBE_REACH_UM 12700 /* a probe closes 0.5 in from where it started whatever it saw */
+#define LEVELER_ALG3_PROBE_MOVED_MIN_UM 250   /* an early probe closes once moved this far at least ... */
+#define LEVELER_ALG3_PROBE_MOVED_MAX_UM 2540  /* ... (more with sensor noise: the caller's) and at most */
+
+/* A commissioning probe (commission.h): a move that ends at what it is to show, not at the target. */
+typedef enum {
+    LEVELER_ALG3_PROBE_NONE = 0,
+    LEVELER_ALG3_PROBE_BREAK = 1, /* closes once the platform broke away (the learner saw the motion) */
+    LEVELER_ALG3_PROBE_EARLY = 2  /* ... or moved probe_moved_um from its start, whichever is first: less
+                                   * excess; the line is then learnt where the platform stops */
+} leveler_alg3_probe_kind;
+
+/* watch.adopt bits: the next observation replaces the setting instead of moving it halfway (commissioning
+ * starts from nothing on a new rig). */
+#define LEVELER_ALG3_ADOPT_GAP 0x01u
+#define LEVELER_ALG3_ADOPT_TAU_UP 0x02u
+#define LEVELER_ALG3_ADOPT_TAU_DOWN 0x04u
+#define LEVELER_ALG3_ADOPT_K_UP 0x08u
+#define LEVELER_ALG3_ADOPT_K_DOWN 0x10u
+#define LEVELER_ALG3_ADOPT_ALL 0x1Fu
 
 /* What the learner saw (alg3_learn.c). */
 typedef struct {
@@ -109,6 +129,7 @@ typedef struct {
     int32_t end_height_um;
     int32_t end_p_spring_pa;
     int32_t p_spring_ring_pa[LEVELER_ALG3_RATE_TICKS]; /* P2 history, same slots as heights */
+    uint8_t adopt;            /* LEVELER_ALG3_ADOPT_* still to be taken as seen */
 } leveler_alg3_watch;
 
 typedef struct {
@@ -133,6 +154,11 @@ typedef struct {
     uint32_t burst_start_ms;
     uint16_t burst_ms;        /* length of the present burst */
     uint16_t moves;
+    uint8_t probe;            /* leveler_alg3_probe_kind of the present move */
+    int32_t probe_from_um;    /* where the probe started */
+    int32_t probe_moved_um;   /* an early probe closes once moved this far */
+    bool hold;                /* commissioning in charge: idle acts on no departure (commissioning.h) */
+    bool commissioning;       /* the load is held: a motion nobody asked for is a creep, not a load change */
     leveler_dwell dwell;
     leveler_alg3_watch watch;
 } leveler_alg3;
@@ -150,6 +176,19 @@ leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings 
                                         int32_t p_spring_pa, int32_t p_pipe_pa, int32_t p_acc_pa, uint32_t now_ms,
                                         bool held, leveler_outputs *out, leveler_settings *learnt,
                                         bool *learnt_changed);
+
+/* Commissioning (commissioning.h): start a probe move, fill (dir < 0 as for a departure below: -1) or
+ * vent (+1), of the given kind (an early one closes once moved moved_um, clamped to PROBE_MOVED_MIN..MAX);
+ * the accumulator only for the first half of a fill's way up. Only from idle: returns false otherwise. */
+bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, int32_t moved_um, uint32_t now_ms);
+
+/* Learn from the last probe (coast, and the line where it stopped: leveler_alg3_learn_coast), once the
+ * caller has seen the platform stop; its settle does not (a slow creep goes on below the rate's rest). */
+void leveler_alg3_probe_learn(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,
+                              bool *changed);
+
+/* How far the platform moved the probe's way since the present (or last) probe started, um. */
+int32_t leveler_alg3_probe_moved_um(const leveler_alg3 *a, bool up);
 
 /* The outputs actually driven this tick (after the supervisor), for the dwell timers. */
 void leveler_alg3_driven(leveler_alg3 *a, const leveler_outputs *driven, uint32_t now_ms);

@@ -64,6 +64,11 @@ typedef struct {
     int32_t alg3_coast_k_up_pa_per_mm;   /* learnt */
     int32_t alg3_coast_k_down_pa_per_mm; /* learnt */
     int32_t alg3_gap_pa;           /* learnt */
+    /* the last commissioning (commission.h), read-only over Modbus, kept in flash with the rest */
+    uint16_t commission_result;    /* leveler_commission_result */
+    uint16_t commission_ms;        /* its duration, saturated */
+    int32_t commission_up_pa;      /* the lines it learnt at the target height, 0 = none */
+    int32_t commission_down_pa;
 } leveler_settings;
 
 /* Factory defaults (the thesis rig). */

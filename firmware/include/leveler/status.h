@@ -61,6 +61,7 @@ typedef struct {
     uint32_t link_faults_auto_cleared; /* Linux rig: link-outage sensor faults cleared by [faults] auto-clear */
     uint16_t alg3_phase; /* leveler_alg3_phase */
     uint16_t alg3_moves;
+    uint16_t commission_step; /* leveler_commission_phase, 0 = not running */
     bool compressor_on;
     bool spring_valve_open;
     bool vent_valve_open;
@@ -79,6 +80,7 @@ typedef struct {
     bool manual_spring_valve;
     bool manual_vent_valve;
     bool manual_acc_valve;
+    bool commission; /* written 1: run the commissioning routine; reads 1 while it runs; written 0: abort */
 } leveler_command;
 
 /* The status of the last tick and the commands in force. */

@@ -29,6 +29,7 @@ typedef struct {
     size_t step_count;
     double end_s;
     double rest_from_s, rest_to_s;  /* REST: the window at rest that is scored */
+    bool commission;                /* the firmware's commissioning routine runs from 0 s (sim_options) */
 } ctlbench_scenario;
 
 /* One load step (steps[1..]): from its time to the next step's (or the end). */
@@ -82,6 +83,11 @@ int ctlbench_run(const ctlbench_scenario *sc, int algorithm, const char *configs
  * rest scored from 60 s after the removal, with `noise` counts of sensor noise. */
 void ctlbench_thesis_rest(ctlbench_scenario *sc, const char *name, const char *config_file, double noise,
                           uint32_t seed, double rest_s);
+
+/* The 900 lb thesis steps after commissioning: the coil written at 0 s, the base load held for
+ * LEVELER_COMMISSION_MAX_MS, then +200 lb 5 s later, removed 30 s after that, 60 s to settle. */
+void ctlbench_thesis_commissioned(ctlbench_scenario *sc, const char *name, const char *config_file, double noise,
+                                  uint32_t seed);
 
 /* The scenario's config as the runs use it: loaded from configs_dir, the
  * scenario's noise, and for algorithms 1 and 2 (and the limit, 0) no chatter

@@ -17,6 +17,7 @@
 #ifndef LEVELER_SIMLOOP_H
 #define LEVELER_SIMLOOP_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -35,6 +36,8 @@ typedef struct {
     size_t rows_cap;
     void (*progress)(double t_s, double end_s, void *user); /* optional, about every simulated 5 % */
     void *progress_user;
+    bool commission;             /* write the coil `commission` (1) before the firmware's first tick:
+                                  * the commissioning routine runs first (leveler/commissioning.h) */
 } sim_options;
 
 /* What happened in a run that a user must be told (leveler-sim's summary). */
@@ -68,6 +71,8 @@ int sim_run(const sim_options *opt, sim_result *res, char *err, size_t err_len);
  * time (k * 10 ms) to the HAL, runs leveler_app_tick() and reads the outputs. */
 int sim_firmware_start(const plant_config *cfg, int algorithm, char *err, size_t err_len);
 void sim_firmware_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT]);
+/* The coil `commission` written 1 through the register map, as a SCADA would; 0 or -1 with the refusal. */
+int sim_firmware_commission(char *err, size_t err_len);
 
 /* A schedule's register writes (mode, manual requests; stepper.h), made the
  * way a SCADA makes them: through the firmware's register map
