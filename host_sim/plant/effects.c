@@ -111,6 +111,7 @@ static void rk4_step(plant_fx *f, double h)
 
 void plant_fx_advance(plant_fx *f, double dt_s, int substeps)
 {
+    f->tick_s = dt_s; /* the valve models place a switch inside the next tick by it */
     if (f->nmodels == 0) {
         plant_advance(&f->pl, dt_s, substeps);
     } else {
@@ -125,9 +126,13 @@ void plant_fx_advance(plant_fx *f, double dt_s, int substeps)
         for (int i = 0; i < n; i++)
             rk4_step(f, dt_s / n);
     }
-    /* the transducer filters start from the first tick's values */
+    /* the transducer filters start from the first tick's values; they filter
+     * what the transducers see where they sit (the models before the sensors') */
     double raw[4];
     plant_sensed(&f->pl, raw);
+    for (int i = 0; i < f->nmodels; i++)
+        if (f->model[i]->ops->sensed && f->model[i]->ops->stage < PLANT_FX_STAGE_SENSOR)
+            f->model[i]->ops->sensed(f, f->q[i], raw);
     bool first = !f->sens_ready;
     if (first) {
         for (int c = 0; c < 4; c++)
@@ -180,10 +185,16 @@ void plant_fx_replace_flows(const plant *pl, const double *x, double *dx, const 
 void plant_fx_thermal_balance(const plant_fx *f, const double *x, double *dx, const plant_flows *fl, double tau,
                               double tw)
 {
+    plant_fx_thermal_balance_in(f, x, dx, fl, tau, tw, f->pl.p.temperature_k);
+}
+
+void plant_fx_thermal_balance_in(const plant_fx *f, const double *x, double *dx, const plant_flows *fl, double tau,
+                                 double tw, double t_in)
+{
     /* Energy balance of the gas in spring and pipe (ideal gas, U = P V/(k-1)):
      *   dP/dt = Z k (R T_src m - P dV/dt)/V + P (Tw - T)/(T tau)
      *   dT/dt = T (dP/P + dV/V) - m R T^2/(P V)
-     * in place of the fixed exponent n. Inflow from the compressor at ambient. */
+     * in place of the fixed exponent n. Inflow from the compressor at t_in. */
     const plant_params *p = &f->pl.p;
     const double *xe = x + PLANT_NX;
     double *dxe = dx + PLANT_NX;
@@ -195,7 +206,7 @@ void plant_fx_thermal_balance(const plant_fx *f, const double *x, double *dx, co
     double t_s_src = m_s > 0.0 ? t1 : t2; /* gas crossing the spring valve */
     double d_p2 = z * k * (r * t_s_src * m_s - p2 * dv2) / v2 + p2 * (tw - t2) / (t2 * tau);
     double d_t2 = t2 * (d_p2 / p2 + dv2 / v2) - m_s * r * t2 * t2 / (p2 * v2);
-    double d_p1 = z * k * r * (p->temperature_k * m_c - t_s_src * m_s - t1 * m_v) / v1 +
+    double d_p1 = z * k * r * (t_in * m_c - t_s_src * m_s - t1 * m_v) / v1 +
                   p1 * (p->temperature_k - t1) / (t1 * tau);
     double d_t1 = t1 * d_p1 / p1 - (m_c - m_s - m_v) * r * t1 * t1 / (p1 * v1);
     dx[PLANT_X_P2] = d_p2;

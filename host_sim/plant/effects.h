@@ -44,9 +44,9 @@ enum {
     PLANT_FX_USES_GAS_T = 1 << 0,   /* xe T2, T1: gas temperatures */
     PLANT_FX_USES_WALL_T = 1 << 1,  /* xe TW */
     PLANT_FX_USES_Z = 1 << 2,       /* xe Z */
-    PLANT_FX_USES_AUX = 1 << 3,     /* xe AUX */
+    PLANT_FX_USES_AUX = 1 << 3,     /* xe AUX, AUX + 1 */
     PLANT_FX_USES_VALVE_X = 1 << 4, /* xe VALVE, VALVE + 1 */
-    PLANT_FX_USES_VALVE_MEM = 1 << 5, /* eff[], pending_s[]: delayed valve states */
+    PLANT_FX_USES_VALVE_MEM = 1 << 5, /* eff[], pending_s[], open_frac[]: delayed valve states */
     PLANT_FX_USES_DELAY = 1 << 6,   /* mc_buf: the compressor flow's delay line */
     PLANT_FX_USES_SENS = 1 << 7     /* sens[][]: the transducer filters, and what they report */
 };
@@ -105,9 +105,12 @@ struct plant_fx {
     double q[PLANT_FX_MAX_MODELS][PLANT_FX_MAX_PARAMS];
     double xe[PLANT_FX_NX];
     double y_ref_m;            /* height the area corrections are centred on */
-    /* valve delays: commanded and effective states, pending switch time */
+    /* valve delays: commanded and effective states, pending switch time, the
+     * open share of the current tick; the last tick's length */
     bool cmd[2], eff[2];
     double pending_s[2];
+    double open_frac[2];
+    double tick_s;
     /* transport delay of the compressor flow */
     double mc_buf[PLANT_FX_DELAY_TICKS];
     int mc_head;
@@ -155,6 +158,9 @@ void plant_fx_replace_flows(const plant *pl, const double *x, double *dx, const 
 /* Energy balance of the gas in spring and pipe with a wall at tw and time constant tau. */
 void plant_fx_thermal_balance(const plant_fx *f, const double *x, double *dx, const plant_flows *fl, double tau,
                               double tw);
+/* The same with the compressor's air entering the pipe at t_in (K) instead of ambient. */
+void plant_fx_thermal_balance_in(const plant_fx *f, const double *x, double *dx, const plant_flows *fl, double tau,
+                                 double tw, double t_in);
 /* Effective area scaled by s at this state: volume rate and pressure force scale with it. */
 void plant_fx_scale_area(const plant_fx *f, const double *x, double *dx, double s);
 /* First-order lag over dt towards target (tau ~ 0: the target). */

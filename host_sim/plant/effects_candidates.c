@@ -2,13 +2,16 @@
  * The candidate effects the diagnosis fits, one set of functions per effect
  * (effects.h; names, parameters and ranges in effects.json). Parameters in
  * order, SI; "nominal" values give the nominal plant:
- *   thermal         tau_thermal_s (0: fixed polytropic n)
+ *   thermal         tau_thermal_s (0: fixed polytropic n); wall's share of the gas's heat
+ *                   capacity (0: a wall held at ambient), wall-to-room s, warm delivery (relative)
  *   area            A = A_nom (1 + a0 + a1 d + a2 d^2), d = y - y_ref held within +-50 mm:
  *                   a1 rel/m, a2 rel/m^2, a0 relative
  *   friction        Coulomb N, Stribeck N, Stribeck velocity m/s
  *   valve_dynamics  open delay s, close delay s, ISO 6358 b (0 = eq. 8)
  *   line_delay      transport delay s, junction volume change m^3, tube volume behind a laminar
- *                   resistance m^3, that resistance as the tube's time constant s
+ *                   resistance m^3, that resistance as the tube's time constant s; hose volume
+ *                   between spring valve and spring m^3, its fitting's Cd A relative to the
+ *                   valve's, share of the hose's / tube's pressure the P2 / P1 transducers read
  *   leak            orifice area m^2 (Cd 1), spring -> ambient
  *   sensor_lag      pressure lag s, height lag s, P2 offset Pa, height offset m
  */
@@ -18,13 +21,22 @@
 
 static double sgn(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
 
-/* ---- thermal: one gas-to-wall time constant, wall at ambient ---- */
+/* ---- thermal: one gas-to-wall time constant q0, the wall at ambient; extended
+ * by a wall that warms (its heat capacity: the gas's over the wall's, q1; its
+ * own time constant to the room, q2) and a compressor that delivers warm air
+ * (q3: its outlet above ambient, relative) ---- */
 static void thermal_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
 {
-    if (q[0] > 0.0) /* 0: the fixed polytropic exponent */
-        plant_fx_thermal_balance(f, x, dx, fl, q[0], f->pl.p.temperature_k);
+    if (!(q[0] > 0.0)) /* 0: the fixed polytropic exponent */
+        return;
+    double ta = f->pl.p.temperature_k, tw = q[1] > 0.0 ? x[PLANT_NX + PLANT_FX_XE_TW] : ta;
+    plant_fx_thermal_balance_in(f, x, dx, fl, q[0], tw, ta * (1.0 + q[3]));
+    if (q[1] > 0.0)
+        dx[PLANT_NX + PLANT_FX_XE_TW] =
+            q[1] * (x[PLANT_NX + PLANT_FX_XE_T2] - tw) / q[0] + (q[2] > 0.0 ? (ta - tw) / q[2] : 0.0);
 }
-const plant_fx_ops fx_thermal_ops = {.stage = PLANT_FX_STAGE_GAS, .uses = PLANT_FX_USES_GAS_T, .rhs = thermal_rhs};
+const plant_fx_ops fx_thermal_ops = {.stage = PLANT_FX_STAGE_GAS, .uses = PLANT_FX_USES_GAS_T | PLANT_FX_USES_WALL_T,
+                                     .rhs = thermal_rhs};
 
 /* ---- area: a quadratic in height, flat past +-50 mm (the rolling lobe) ---- */
 static void area_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
@@ -56,25 +68,35 @@ const plant_fx_ops fx_friction_ops = {.stage = PLANT_FX_STAGE_FORCE, .rhs = fric
 
 /* ---- valve_dynamics: pure opening/closing delays, ISO 6358 flow ---- */
 
-/* The commanded valve state after its opening/closing delay. */
-static bool delayed_valve(plant_fx *f, const double *q, int i, bool cmd)
+/* The valve's open share of the coming tick after its opening/closing delay.
+ * A switch due inside the tick opens the valve for the share of the tick after
+ * it (the flow scaled by that share): the plant is then a continuous function
+ * of the delays, not a staircase of 10 ms steps a least-squares fit cannot
+ * climb. Without a tick length yet (the first tick) the switch waits for the
+ * tick boundary. */
+static double delayed_valve(plant_fx *f, const double *q, int i, bool cmd)
 {
-    double open_d = q[0], close_d = q[1], t = f->pl.t_s;
+    double open_d = q[0], close_d = q[1], t = f->pl.t_s, dt = f->tick_s;
     if (cmd != f->cmd[i]) {
         f->cmd[i] = cmd;
         f->pending_s[i] = cmd != f->eff[i] ? t + (cmd ? open_d : close_d) : -1.0;
     }
-    if (f->pending_s[i] >= 0.0 && t >= f->pending_s[i] - 1e-9) {
+    double frac = f->eff[i] ? 1.0 : 0.0;
+    if (f->pending_s[i] >= 0.0 && t + dt > f->pending_s[i] - 1e-9) {
+        double after = dt > 0.0 && f->pending_s[i] > t ? fmax(0.0, (t + dt - f->pending_s[i]) / dt) : 1.0;
         f->eff[i] = f->cmd[i];
         f->pending_s[i] = -1.0;
+        frac = f->eff[i] ? after : 1.0 - after;
     }
-    return f->eff[i];
+    return frac;
 }
 
 static void valve_inputs(plant_fx *f, const double *q, plant_inputs *eff)
 {
-    eff->spring_valve = delayed_valve(f, q, 0, eff->spring_valve);
-    eff->vent_valve = delayed_valve(f, q, 1, eff->vent_valve);
+    f->open_frac[0] = delayed_valve(f, q, 0, eff->spring_valve);
+    f->open_frac[1] = delayed_valve(f, q, 1, eff->vent_valve);
+    eff->spring_valve = f->open_frac[0] > 0.0;
+    eff->vent_valve = f->open_frac[1] > 0.0;
 }
 
 static void valve_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
@@ -91,7 +113,7 @@ static void valve_rhs(const plant_fx *f, const double *q, const double *x, doubl
                                   : 0.0;
         m_v = pl->in.vent_valve ? plant_fx_two_way(pl, av, av, x[PLANT_X_P1], p->ambient_pa, q[2]) : 0.0;
     }
-    plant_fx_replace_flows(pl, x, dx, fl, fl->compressor, m_s, m_v);
+    plant_fx_replace_flows(pl, x, dx, fl, fl->compressor, m_s * f->open_frac[0], m_v * f->open_frac[1]);
 }
 const plant_fx_ops fx_valve_dynamics_ops = {.stage = PLANT_FX_STAGE_FLOW, .uses = PLANT_FX_USES_VALVE_MEM,
                                             .inputs = valve_inputs, .rhs = valve_rhs};
@@ -99,11 +121,20 @@ const plant_fx_ops fx_valve_dynamics_ops = {.stage = PLANT_FX_STAGE_FLOW, .uses 
 /* ---- line_delay: the compressor's flow reaches the junction after the
  * transport delay q0, through a tube of volume q2 behind a laminar resistance
  * (its filling time constant q3); q1 changes the junction's volume (negative:
- * part of the pipe sits behind the resistance, a pipe split in two) ---- */
+ * part of the pipe sits behind the resistance, a pipe split in two). On the
+ * spring's side, a hose of volume q4 between the spring valve and the spring,
+ * entering it through a fitting (an orifice, q5 times the spring valve's Cd A);
+ * the spring's transducer reads a share q6 of the hose's pressure (1: it sits
+ * on the hose), the pipe's a share q7 of the tube's (1: at the compressor's
+ * end). Both transducer places of each restriction are covered. ---- */
+enum { LINE_TUBE = PLANT_FX_XE_AUX, LINE_HOSE = PLANT_FX_XE_AUX + 1 };
+#define LINE_HOSE_MIN_M3 2e-5 /* a short 1/4 in hose; smaller ones cost RK4 substeps for nothing seen */
+
 static void line_init(plant_fx *f, const double *q)
 {
     (void)q;
-    f->xe[PLANT_FX_XE_AUX] = f->pl.p.init_p_pipe_pa;
+    f->xe[LINE_TUBE] = f->pl.p.init_p_pipe_pa;
+    f->xe[LINE_HOSE] = f->pl.p.init_p_spring_pa;
 }
 
 /* The junction keeps at least a fifth of the pipe's volume. */
@@ -113,28 +144,60 @@ static double line_junction_m3(const plant_fx *f, const double *q)
     return fmax(v1 + q[1], 0.2 * v1);
 }
 
+static double line_hose_m3(const double *q) { return q[4] > 0.0 ? fmax(q[4], LINE_HOSE_MIN_M3) : 0.0; }
+
+/* With a hose, the spring valve feeds the hose and the fitting the spring:
+ * the valve's flow (junction side) and the fitting's (spring side). */
+static void line_hose_flows(const plant_fx *f, const double *q, const double *x, double *dx, double *m_valve,
+                            double *m_fit)
+{
+    const plant *pl = &f->pl;
+    const plant_params *p = &pl->p;
+    double vh = line_hose_m3(q), ph = x[PLANT_NX + LINE_HOSE], a = pl->spring_valve_area_m2;
+    *m_valve = pl->in.spring_valve ? plant_fx_two_way(pl, p->spring_valve_cd_in * a, p->spring_valve_cd_out * a,
+                                                      x[PLANT_X_P1], ph, 0.0)
+                                   : 0.0;
+    double cda = q[5] * p->spring_valve_cd_in * a;
+    *m_fit = plant_fx_two_way(pl, cda, cda, ph, x[PLANT_X_P2], 0.0);
+    dx[PLANT_NX + LINE_HOSE] = pl->zn * pl->rt * (*m_valve - *m_fit) / vh;
+}
+
 static void line_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
 {
     const plant *pl = &f->pl;
     double m_c = q[0] > 0.0 ? f->mc_delayed : fl->compressor;
     if (q[2] > 0.0) {
         double tau = fmax(q[3], 1e-3);
-        double m_line = q[2] / (pl->zn * pl->rt * tau) * (x[PLANT_NX + PLANT_FX_XE_AUX] - x[PLANT_X_P1]);
-        dx[PLANT_NX + PLANT_FX_XE_AUX] = pl->zn * pl->rt * (m_c - m_line) / q[2];
+        double m_line = q[2] / (pl->zn * pl->rt * tau) * (x[PLANT_NX + LINE_TUBE] - x[PLANT_X_P1]);
+        dx[PLANT_NX + LINE_TUBE] = pl->zn * pl->rt * (m_c - m_line) / q[2];
         m_c = m_line;
     }
-    plant_fx_replace_flows(pl, x, dx, fl, m_c, fl->spring_valve, fl->vent_valve);
+    double m_s = fl->spring_valve, m_fit = fl->spring_valve;
+    if (line_hose_m3(q) > 0.0)
+        line_hose_flows(f, q, x, dx, &m_s, &m_fit);
+    plant_fx_replace_flows(pl, x, dx, fl, m_c, m_s, fl->vent_valve);
+    dx[PLANT_X_P2] += pl->zn * pl->rt * (m_fit - m_s) / x[PLANT_X_V2]; /* the spring gets the fitting's flow */
     dx[PLANT_X_P1] *= pl->p.pipe_volume_m3 / line_junction_m3(f, q);
 }
 
-/* Substeps that keep RK4 stable on the tube: its fastest mode decays at
- * (1 + Vt/Vj)/tau, kept below 1.5 per substep. */
+/* Substeps that keep RK4 stable: the tube's fastest mode decays at
+ * (1 + Vt/Vj)/tau, kept below 1.5 per substep; a hose smaller than the pipe
+ * (which the config's substeps keep accurate) behind a wide fitting needs more. */
 static int line_substeps(const plant_fx *f, const double *q, double dt_s, int substeps)
 {
-    if (!(q[2] > 0.0))
-        return substeps;
-    double rate = (1.0 + q[2] / line_junction_m3(f, q)) / fmax(q[3], 1e-3);
-    int need = (int)ceil(dt_s * rate / 1.5);
+    int need = substeps;
+    if (q[2] > 0.0) {
+        double rate = (1.0 + q[2] / line_junction_m3(f, q)) / fmax(q[3], 1e-3);
+        need = (int)ceil(dt_s * rate / 1.5);
+    }
+    double vh = line_hose_m3(q);
+    if (vh > 0.0) {
+        /* measured: the final state to 10 um needs about this many (a 1e-5 m^3
+         * hose behind a fitting 5x the valve's: 80; 1e-4 m^3, 1x: the config's 2) */
+        double scale = fmax(1.0, 0.5 * fmax(1.0, q[5]) * f->pl.p.pipe_volume_m3 / vh);
+        int hose = (int)ceil(substeps * scale);
+        need = hose > need ? hose : need;
+    }
     return need > substeps ? (need < 400 ? need : 400) : substeps;
 }
 
@@ -153,9 +216,19 @@ static void line_after_tick(plant_fx *f, const double *q, const double raw[4], d
     f->mc_buf[f->mc_head] = fl.compressor;
     f->mc_delayed = f->mc_buf[(f->mc_head - d + PLANT_FX_DELAY_TICKS) % PLANT_FX_DELAY_TICKS];
 }
+
+/* Where the transducers sit: on the hose rather than the spring, at the
+ * compressor's end of the tube rather than at the valves. */
+static void line_sensed(const plant_fx *f, const double *q, double out[4])
+{
+    if (line_hose_m3(q) > 0.0)
+        out[1] += q[6] * (f->xe[LINE_HOSE] - f->pl.x[PLANT_X_P2]);
+    if (q[2] > 0.0)
+        out[2] += q[7] * (f->xe[LINE_TUBE] - f->pl.x[PLANT_X_P1]);
+}
 const plant_fx_ops fx_line_delay_ops = {.stage = PLANT_FX_STAGE_VOLUME, .uses = PLANT_FX_USES_AUX | PLANT_FX_USES_DELAY,
                                         .init = line_init, .rhs = line_rhs, .after_tick = line_after_tick,
-                                        .substeps = line_substeps};
+                                        .sensed = line_sensed, .substeps = line_substeps};
 
 /* ---- leak: an orifice (eq. 8/9) spring -> ambient ---- */
 static void leak_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)

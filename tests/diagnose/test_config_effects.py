@@ -111,7 +111,8 @@ def test_an_effect_asked_for_runs_beside_the_configs(cplant, tmp_path, step_run)
 def test_dump_config_lists_the_effects(tmp_path):
     cfg = write_config(tmp_path / "t.ini", {"thermal": {"tau_thermal_s": 12.5}})
     doc = lcfg.resolved(cfg)
-    assert doc["effects"] == {"thermal": {"tau_thermal_s": 12.5}}
+    # the key given, and the catalogue's nominal values of the others (off: the base model)
+    assert doc["effects"] == {"thermal": dict(fx.BY_NAME["thermal"].nominal(), tau_thermal_s=12.5)}
     assert lcfg.resolved(BASE)["effects"] == {}
     # a parameter not given keeps the catalogue's nominal value
     cfg = write_config(tmp_path / "f.ini", {"friction": {"coulomb_n": 40.0}})
@@ -122,7 +123,7 @@ def test_dump_config_lists_the_effects(tmp_path):
 @pytest.mark.parametrize("sections, line, words", [
     ({"thermal": {"tau_thermal_s": 900.0}}, 6, "out of range [0, 600]"),
     ({"valvedyn": {"open_delay_s": 0.1}}, 6, "unknown effect 'valvedyn'"),
-    ({"thermal": {"open_delay_s": 0.1}}, 6, "unknown parameter of thermal (its parameters: tau_thermal_s)"),
+    ({"thermal": {"open_delay_s": 0.1}}, 6, "unknown parameter of thermal (its parameters: tau_thermal_s, wall_share, tau_wall_s, inlet_rise_rel)"),
     ({"thermal": {"tau_thermal_s": 5.0}, "leak": {"leak_area_m2": 1e-7}, "friction": {"coulomb_n": 5.0}},
      12, "at most 2 effects in one config"),
 ])

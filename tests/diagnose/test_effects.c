@@ -78,6 +78,8 @@ static void test_every_kind_stays_finite(void **state)
         {false, VALVE_DYNAMICS, {0.1, 0.2, 0.3, 0.8}},
         {false, LINE_DELAY, {0.2, 3e-4}},
         {false, LINE_DELAY, {0.1, -1.5e-4, 1e-3, 0.01}}, /* stiffest corner: a big tube, a fast resistance */
+        {false, LINE_DELAY, {0.0, 0.0, 0.0, 0.3, 1e-9, 5.0, 1.0, 0.0}}, /* the smallest hose, a wide fitting */
+        {false, LINE_DELAY, {0.0, 0.0, 0.0, 0.3, 4e-4, 0.2, 1.0, 0.0}}, /* a big hose behind a narrow fitting */
         {false, LEAK, {2e-8}},
         {false, SENSOR_LAG, {0.3, 0.1, 2000.0, 0.001}},
         {true, THERMAL, {8.0, 300.0, 10.0}},
@@ -148,6 +150,97 @@ static void test_line_tube_matches_the_truth_tube(void **state)
     assert_true(fabs(cand.pl.x[PLANT_X_Y] - tr.pl.x[PLANT_X_Y]) < 1e-9);
 }
 
+/* A hose between the spring valve and the spring, behind the spring's fitting.
+ * During a charge the air crosses the fitting, so the hose stands above the
+ * spring; once the valves shut the two equalise, and a transducer on the hose
+ * then reads the spring's pressure. A tiny hose behind a wide fitting is the
+ * nominal plant (its volume is 0.5 % of the spring's). */
+static void test_line_hose(void **state)
+{
+    (void)state;
+    plant_params p = thesis();
+    static plant_fx nominal, hose, tiny;
+    const double q[PLANT_FX_MAX_PARAMS] = {0, 0, 0, 0.3, 2e-4, 0.3, 1.0, 0};
+    const double q_tiny[PLANT_FX_MAX_PARAMS] = {0, 0, 0, 0.3, 2e-5, 50.0, 0, 0};
+    assert_int_equal(plant_fx_init(&nominal, &p, NULL, NULL), 0);
+    assert_int_equal(plant_fx_init(&hose, &p, candidate(LINE_DELAY), q), 0);
+    assert_int_equal(plant_fx_init(&tiny, &p, candidate(LINE_DELAY), q_tiny), 0);
+    plant_inputs charge = {true, true, false, false, 4893.0};
+    for (int k = 0; k < 300; k++) {
+        plant_fx_set_inputs(&hose, &charge);
+        plant_fx_advance(&hose, 0.01, 10);
+    }
+    assert_true(hose.xe[PLANT_FX_XE_AUX + 1] > hose.pl.x[PLANT_X_P2] + 1000.0);
+    cycle(&hose);
+    cycle(&tiny);
+    cycle(&nominal);
+    double ph = hose.xe[PLANT_FX_XE_AUX + 1], s[4];
+    assert_true(fabs(ph - hose.pl.x[PLANT_X_P2]) < 10.0);
+    plant_fx_sensed(&hose, s);
+    assert_true(s[1] == ph);
+    assert_true(fabs(tiny.pl.x[PLANT_X_P2] - nominal.pl.x[PLANT_X_P2]) < 1e-3 * nominal.pl.x[PLANT_X_P2]);
+    assert_true(fabs(tiny.pl.x[PLANT_X_Y] - nominal.pl.x[PLANT_X_Y]) < 1e-3);
+}
+
+/* The valve candidate's delays act inside a tick: an opening delay of 105 ms
+ * lands the plant between the 100 ms and 110 ms ones, near their middle (a
+ * switch on the 10 ms tick grid would give one of the two): the fit sees a
+ * slope, not a staircase. */
+static void test_valve_delay_between_ticks(void **state)
+{
+    (void)state;
+    plant_params p = thesis();
+    const double delays[3] = {0.100, 0.105, 0.110};
+    double p2[3];
+    for (int i = 0; i < 3; i++) {
+        static plant_fx f;
+        const double q[PLANT_FX_MAX_PARAMS] = {delays[i], 0.0, 0.0};
+        assert_int_equal(plant_fx_init(&f, &p, candidate(VALVE_DYNAMICS), q), 0);
+        plant_inputs in = {true, true, false, false, 4893.0};
+        for (int k = 0; k < 100; k++) {
+            plant_fx_set_inputs(&f, &in);
+            plant_fx_advance(&f, 0.01, 10);
+        }
+        p2[i] = f.pl.x[PLANT_X_P2];
+    }
+    double span = fabs(p2[0] - p2[2]);
+    assert_true(span > 1.0); /* Pa, after 1 s: the 10 ms later opening shows */
+    assert_true(fabs(p2[1] - 0.5 * (p2[0] + p2[2])) < 0.1 * span);
+}
+
+/* The thermal candidate's warming wall and the first truth family's thermal
+ * wall are two codings of one physics (the truth: the wall's capacity ratio c,
+ * the candidate: the gas's share 1/c): the same plant to rounding. A warm
+ * delivery (30 % above ambient) raises the shut pipe's pressure 30 % faster in
+ * the first tick of a charge, the heat exchange being slow. */
+static void test_thermal_extensions(void **state)
+{
+    (void)state;
+    plant_params p = thesis();
+    static plant_fx cand, tr, cold, warm;
+    const double tp[PLANT_FX_MAX_PARAMS] = {8.0, 300.0, 4.0};
+    const double cp[PLANT_FX_MAX_PARAMS] = {8.0, 1.0 / 4.0, 300.0, 0.0};
+    assert_int_equal(plant_fx_init(&tr, &p, truth(THERMAL), tp), 0);
+    assert_int_equal(plant_fx_init(&cand, &p, candidate(THERMAL), cp), 0);
+    cycle(&cand);
+    cycle(&tr);
+    assert_true(fabs(cand.pl.x[PLANT_X_P2] - tr.pl.x[PLANT_X_P2]) < 1e-6 * tr.pl.x[PLANT_X_P2]);
+    assert_true(fabs(cand.pl.x[PLANT_X_Y] - tr.pl.x[PLANT_X_Y]) < 1e-9);
+    assert_true(fabs(cand.xe[PLANT_FX_XE_TW] - tr.xe[PLANT_FX_XE_TW]) < 1e-6);
+    const double qc[PLANT_FX_MAX_PARAMS] = {600.0, 0.0, 600.0, 0.0}, qw[PLANT_FX_MAX_PARAMS] = {600.0, 0.0, 600.0, 0.3};
+    assert_int_equal(plant_fx_init(&cold, &p, candidate(THERMAL), qc), 0);
+    assert_int_equal(plant_fx_init(&warm, &p, candidate(THERMAL), qw), 0);
+    double p1 = cold.pl.x[PLANT_X_P1];
+    plant_inputs in = {true, false, false, false, 4003.4};
+    plant_fx_set_inputs(&cold, &in);
+    plant_fx_set_inputs(&warm, &in);
+    plant_fx_advance(&cold, 0.01, 10);
+    plant_fx_advance(&warm, 0.01, 10);
+    double rise = (warm.pl.x[PLANT_X_P1] - p1) / (cold.pl.x[PLANT_X_P1] - p1);
+    assert_true(cold.pl.x[PLANT_X_P1] > p1);
+    assert_true(fabs(rise - 1.3) < 0.013);
+}
+
 static void test_out_of_range_is_refused(void **state)
 {
     (void)state;
@@ -190,7 +283,7 @@ static const double *on_params(bool is_truth, int id)
 {
     static const double cand[8][PLANT_FX_MAX_PARAMS] = {
         {0}, {5.0}, {2.0, -50.0, 0.03}, {100.0, 50.0, 0.005}, {0.1, 0.2, 0.3, 0.8},
-        {0.1, -1.5e-4, 2e-4, 0.5}, {2e-8}, {0.3, 0.1, 2000.0, 0.001}};
+        {0.1, -1.5e-4, 2e-4, 0.5, 1e-4, 0.5, 1.0, 1.0}, {2e-8}, {0.3, 0.1, 2000.0, 0.001}};
     static const double tru[8][PLANT_FX_MAX_PARAMS] = {
         {0}, {8.0, 300.0, 10.0}, {0.05, -0.03, 0.0, 0.04, -0.05}, {100.0, 60.0, 0.004, 2e5, 2000.0},
         {0.1, 0.15, 0.3, 0.8}, {1e-4, 1e-8, 0.6}, {1e-16}, {0.3, 0.15, 0.1, 3000.0, 0.005, 5e-4}};
@@ -304,6 +397,9 @@ int main(void)
         cmocka_unit_test(test_off_is_the_nominal_plant),
         cmocka_unit_test(test_out_of_range_is_refused),
         cmocka_unit_test(test_line_tube_matches_the_truth_tube),
+        cmocka_unit_test(test_line_hose),
+        cmocka_unit_test(test_valve_delay_between_ticks),
+        cmocka_unit_test(test_thermal_extensions),
         cmocka_unit_test(test_leak_empties_and_closed_plant_keeps_mass),
         cmocka_unit_test(test_every_pair_stays_finite),
         cmocka_unit_test(test_pair_with_a_nominal_second_is_the_single),

@@ -30,6 +30,7 @@ class Param:
     nominal: float
     log: bool = False   # fit in log space (time constants, areas spanning decades)
     doc: str = ""
+    extends: bool = False   # extends the base model (nominal: the base), fitted after it
 
 
 @dataclass(frozen=True)
@@ -53,7 +54,7 @@ def load(path=CATALOGUE):
         doc = json.load(fh)
     return tuple(Effect(e["name"], e["id"],
                         tuple(Param(p["name"], p["fit"][0], p["fit"][1], p["nominal"], p.get("log", False),
-                                    p.get("doc", "")) for p in e["params"]),
+                                    p.get("doc", ""), p.get("extends", False)) for p in e["params"]),
                         e["doc"])
                  for e in doc["effects"])
 

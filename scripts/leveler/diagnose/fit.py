@@ -150,27 +150,62 @@ def start_count(d):
 
 def fit_effect(problem, effect, starts=None, max_nfev=60, seed=0, polish=4):
     """Least-squares fit of one effect. Returns dict with params, cost, evaluations."""
-    d = len(effect.params)
-    sampler = qmc.Halton(d, scramble=True, seed=seed)
-    cand = sampler.random(max(2, starts or start_count(d)))
-    # the "off" point (nominal plant) when it lies in the box: a fit can always fall back to it
+    if any(p.extends for p in effect.params):
+        return fit_nested(problem, effect, starts, max_nfev, seed, polish)
+    return fit_from(problem, effect, _starts(effect, range(len(effect.params)), starts, seed), max_nfev, polish)
+
+
+def _starts(effect, idx, starts, seed):
+    """Quasi-random starts over the parameters idx of the unit box, after the
+    "off" point (nominal plant) when it lies in the box: a fit can always fall back to it."""
+    sampler = qmc.Halton(len(idx), scramble=True, seed=seed)
+    cand = sampler.random(max(2, starts or start_count(len(idx))))
     off = off_point(effect)
-    if off is not None:
-        cand = np.vstack([off, cand])
-    return fit_from(problem, effect, cand, max_nfev, polish)
+    return np.vstack([off[list(idx)], cand]) if off is not None else cand
+
+
+def fit_nested(problem, effect, starts=None, max_nfev=60, seed=0, polish=4):
+    """An effect with extensions (effects.json `extends`): the base model first,
+    the extensions at their nominal values (the very fit the base alone gets),
+    then the whole model from the base's optimum, and also from the best
+    quasi-random start of the whole box when that starts lower. Extensions
+    cannot lose the base's fit, and the base's basins are not diluted in a
+    box of more dimensions under the same budget."""
+    d = len(effect.params)
+    base = [i for i, p in enumerate(effect.params) if not p.extends]
+    nominal = np.asarray(to_unit(effect, effect.nominal()), dtype=float)
+
+    def embed(ub):
+        u = nominal.copy()
+        u[base] = ub
+        return u
+
+    fun = lambda u: problem.residual_vector(effect.name, from_unit(effect, u))
+    ub, cost_b = _search(lambda ub: fun(embed(ub)), _starts(effect, base, starts, seed), max_nfev, polish)
+    u0 = embed(ub)
+    whole = qmc.Halton(d, scramble=True, seed=seed).random(max(2, starts or start_count(d)))
+    costs = [float(np.sum(fun(u) ** 2)) for u in whole]
+    first = [u0] + ([whole[int(np.argmin(costs))]] if min(costs) < cost_b else [])
+    u, cost = _search(fun, np.asarray(first), max_nfev, len(first), [cost_b] + sorted(costs)[:len(first) - 1])
+    return _fit_result(problem, effect, u, cost)
 
 
 def fit_from(problem, effect, cand, max_nfev=60, polish=4):
     """The cost at each start (rows of unit-box points), least_squares from the best `polish`."""
-    d = len(effect.params)
-    costs = []
-    for u in cand:
-        r = problem.residual_vector(effect.name, from_unit(effect, u))
-        costs.append(float(np.sum(r ** 2)))
+    fun = lambda u: problem.residual_vector(effect.name, from_unit(effect, u))
+    u, cost = _search(fun, cand, max_nfev, polish)
+    return _fit_result(problem, effect, u, cost)
+
+
+def _search(fun, cand, max_nfev, polish, costs=None):
+    """least_squares over the unit box from the `polish` lowest of the starts cand
+    (their costs computed here unless given); the best point and its cost."""
+    d = cand.shape[1]
+    if costs is None:
+        costs = [float(np.sum(fun(u) ** 2)) for u in cand]
     order = np.argsort(costs)
     best_u, best_cost = cand[order[0]], costs[order[0]]
     for k in order[:polish]:
-        fun = lambda u: problem.residual_vector(effect.name, from_unit(effect, u))
         try:
             res = least_squares(fun, cand[k], bounds=(np.zeros(d), np.ones(d)), diff_step=0.02,
                                 x_scale=np.full(d, 0.3), max_nfev=max_nfev, method="trf")
@@ -179,8 +214,12 @@ def fit_from(problem, effect, cand, max_nfev=60, polish=4):
         c = float(np.sum(res.fun ** 2))
         if c < best_cost:
             best_u, best_cost = res.x, c
-    return {"params": from_unit(effect, best_u), "unit": [float(x) for x in best_u],
-            "calibration_gap": float(np.sqrt(best_cost / max(len(problem.runs), 1)))}
+    return best_u, best_cost
+
+
+def _fit_result(problem, effect, u, cost):
+    return {"params": from_unit(effect, u), "unit": [float(x) for x in u],
+            "calibration_gap": float(np.sqrt(cost / max(len(problem.runs), 1)))}
 
 
 def pair_starts(first, second, u_first, u_second):
