@@ -201,14 +201,15 @@ void plant_fx_thermal_balance_in(const plant_fx *f, const double *x, double *dx,
     const double p1 = x[PLANT_X_P1], p2 = x[PLANT_X_P2], v2 = x[PLANT_X_V2], v1 = p->pipe_volume_m3;
     double k = p->heat_ratio_k, z = p->compressibility, r = p->gas_constant_j_per_kg_k;
     double t2 = xe[PLANT_FX_XE_T2], t1 = xe[PLANT_FX_XE_T1];
-    double m_s = fl->spring_valve, m_v = fl->vent_valve, m_c = fl->compressor;
+    double m_s = fl->spring_valve, m_v = fl->vent_valve, m_c = fl->compressor, m_a = fl->acc_valve;
     double dv2 = dx[PLANT_X_V2];
     double t_s_src = m_s > 0.0 ? t1 : t2; /* gas crossing the spring valve */
     double d_p2 = z * k * (r * t_s_src * m_s - p2 * dv2) / v2 + p2 * (tw - t2) / (t2 * tau);
     double d_t2 = t2 * (d_p2 / p2 + dv2 / v2) - m_s * r * t2 * t2 / (p2 * v2);
-    double d_p1 = z * k * r * (t_in * m_c - t_s_src * m_s - t1 * m_v) / v1 +
+    /* the accumulator's flow (its gas stays polytropic) counted at the pipe's temperature */
+    double d_p1 = z * k * r * (t_in * m_c - t_s_src * m_s - t1 * (m_v + m_a)) / v1 +
                   p1 * (p->temperature_k - t1) / (t1 * tau);
-    double d_t1 = t1 * d_p1 / p1 - (m_c - m_s - m_v) * r * t1 * t1 / (p1 * v1);
+    double d_t1 = t1 * d_p1 / p1 - (m_c - m_s - m_v - m_a) * r * t1 * t1 / (p1 * v1);
     dx[PLANT_X_P2] = d_p2;
     dx[PLANT_X_P1] = d_p1;
     dxe[PLANT_FX_XE_T2] = d_t2;
