@@ -1,7 +1,8 @@
 """leveler-diagnose --fleet: a fleet of 3 rigs with different effects (leak,
 thermal, none: the blind test's truth generator, seed 1), one diagnosis each
 as a task on a 2-worker Dask LocalCluster; each rig gets its own verdict, the
-fleet table and the page link each rig's report."""
+fleet table and the page link each rig's report; run again, the fleet keeps
+what it has and diagnoses only the rig whose logs changed."""
 import csv
 import os
 import subprocess
@@ -47,6 +48,26 @@ def test_three_rigs_three_verdicts(tmp_path):
     assert float(rows["rig-leak"]["shrink_pct"]) > 50 and float(rows["rig-thermal"]["shrink_pct"]) > 50
     page = (out / "index.html").read_text()
     assert all(f'href="{rig}/report.html"' in page for rig in TRUTH)
+    resume_keeps_what_is_done(tmp_path / "fleet", out, rows)
+
+
+def resume_keeps_what_is_done(fleet, out, rows):
+    """Run again: every rig kept from its stamp (no diagnosis rerun, same table);
+    one rig's held-out log changed: that rig alone is diagnosed again."""
+    before = {rig: (out / rig / "diagnosis.json").stat().st_mtime_ns for rig in TRUTH}
+    (fleet / "rig-sound" / "holdout.csv").write_bytes((fleet / "rig-sound" / "run2.csv").read_bytes())
+    p = subprocess.run([sys.executable, "-m", "leveler.diagnose", "--fleet", str(fleet), "--out", str(out),
+                        "--serial", "--fast", "--effects", "leak,thermal,valve_dynamics"],
+                       capture_output=True, text=True, timeout=170)
+    assert p.returncode == 0, p.stderr[-3000:]
+    assert "2 rig(s) already diagnosed from the same inputs, kept (rig-leak, rig-thermal" in p.stderr
+    after = {rig: (out / rig / "diagnosis.json").stat().st_mtime_ns for rig in TRUTH}
+    assert after["rig-leak"] == before["rig-leak"] and after["rig-thermal"] == before["rig-thermal"]
+    assert after["rig-sound"] != before["rig-sound"]
+    with open(out / "fleet.csv", newline="") as fh:
+        again = {r["rig"]: r for r in csv.DictReader(fh)}
+    for rig in ("rig-leak", "rig-thermal"):
+        assert again[rig] == rows[rig]
 
 
 def test_a_folder_that_is_not_a_rig_is_bad_input(tmp_path):

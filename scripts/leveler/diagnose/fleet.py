@@ -75,23 +75,65 @@ def _calibrated(cal):
     return "; ".join(f"{p['name']} {p['change_pct']:+.1f}%" for p in moved)
 
 
-def diagnose_rig(rig, out, extra):
+STAMP = "fleet-inputs.json"   # beside a rig's diagnosis: what it was made from
+
+
+def inputs_key(rig, extra):
+    """What a rig's diagnosis depends on: its resolved config (includes followed,
+    by the C loader), its logs' bytes, the options and the leveler version."""
+    import hashlib
+    import leveler
+    from leveler import engine
+    h = hashlib.sha256(json.dumps([engine.config_json(rig.config), list(extra), leveler.__version__],
+                                  sort_keys=True).encode())
+    for path in rig.runs + rig.holdouts:
+        h.update(os.path.basename(path).encode())
+        with open(path, "rb") as fh:
+            h.update(fh.read())
+    return h.hexdigest()
+
+
+def kept_row(rig, out, key):
+    """The row of a rig diagnosed before from the same inputs (its stamp and its
+    diagnosis.json in place), else None: a fleet run stopped and started again
+    does not diagnose a rig twice."""
+    try:
+        with open(os.path.join(out, STAMP), encoding="utf-8") as fh:
+            stamp = json.load(fh)
+        if stamp.get("key") != key or not os.path.exists(os.path.join(out, "diagnosis.json")):
+            return None
+        return _row(rig, out, stamp.get("seconds", ""))
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def diagnose_rig(rig, out, extra, key=None):
     """One rig's diagnosis through leveler-diagnose's entry point (a Dask task):
-    its fleet-table row."""
+    its fleet-table row; with key, the stamp that lets a later run keep it."""
     from . import cli
     argv = ["--config", rig.config] + [x for p in rig.runs for x in ("--run", p)]
     argv += [x for p in rig.holdouts for x in ("--holdout", p)] + ["--out", out, "--quiet", "--jobs", "1"]
+    with contextlib.suppress(FileNotFoundError):
+        os.unlink(os.path.join(out, STAMP))     # stale: this diagnosis replaces what it stood for
     err, start = io.StringIO(), time.perf_counter()
     with contextlib.redirect_stderr(err):
         try:
             code = cli.main(argv + list(extra))
         except SystemExit as e:          # argparse
             code = e.code
-    row = dict.fromkeys(COLUMNS, "")
-    row.update(rig=rig.name, seconds=round(time.perf_counter() - start, 1))
+    seconds = round(time.perf_counter() - start, 1)
     if code != 0:
+        row = dict(dict.fromkeys(COLUMNS, ""), rig=rig.name, seconds=seconds)
         row["error"] = err.getvalue().strip().splitlines()[-1] if err.getvalue().strip() else f"exit {code}"
         return row
+    if key:
+        runlog.write_text_atomic(os.path.join(out, STAMP), json.dumps({"key": key, "seconds": seconds}))
+    return _row(rig, out, seconds)
+
+
+def _row(rig, out, seconds):
+    """A rig's fleet-table row from its diagnosis.json."""
+    row = dict(dict.fromkeys(COLUMNS, ""), rig=rig.name, seconds=seconds)
     with open(os.path.join(out, "diagnosis.json"), encoding="utf-8") as fh:
         d = json.load(fh)
     conf = d.get("confidence") or {}
@@ -104,21 +146,29 @@ def diagnose_rig(rig, out, extra):
 def run_rigs(rigs, out, extra, a, say):
     """Every rig's row, in the rigs' order: on Dask (leveler-sweep's cluster), or here."""
     from leveler.sweep import engine
-    progress = engine.Progress(len(rigs), quiet=a.quiet, prog="leveler-diagnose --fleet", unit="rigs")
-    jobs = [(rig, os.path.join(out, rig.name)) for rig in rigs]
-    if a.serial:
-        rows = []
-        for rig, rig_out in jobs:
-            rows.append(diagnose_rig(rig, rig_out, extra))
+    rows, jobs = {}, []
+    for rig in rigs:
+        rig_out, key = os.path.join(out, rig.name), inputs_key(rig, extra)
+        kept = None if a.fresh else kept_row(rig, rig_out, key)
+        if kept:
+            rows[rig.name] = kept
+        else:
+            jobs.append((rig, rig_out, key))
+    if rows:
+        say(f"leveler-diagnose --fleet: {len(rows)} rig(s) already diagnosed from the same inputs, kept "
+            f"({', '.join(rows)}; --fresh diagnoses them again)")
+    progress = engine.Progress(len(jobs), quiet=a.quiet, prog="leveler-diagnose --fleet", unit="rigs")
+    if a.serial or not jobs:
+        for rig, rig_out, key in jobs:
+            rows[rig.name] = diagnose_rig(rig, rig_out, extra, key)
             progress.step()
-        return rows
+        return [rows[rig.name] for rig in rigs]
     from dask.distributed import as_completed
     with engine.client(a.scheduler, a.workers, a.dashboard) as c:
-        say(f"leveler-diagnose --fleet: {len(rigs)} rigs on {engine.cores(c)} worker threads; "
+        say(f"leveler-diagnose --fleet: {len(jobs)} rigs on {engine.cores(c)} worker threads; "
             f"dashboard {c.dashboard_link}")
-        futures = {c.submit(diagnose_rig, rig, rig_out, extra, key=f"leveler-fleet-{rig.name}", retries=1): rig.name
-                   for rig, rig_out in jobs}
-        rows = {}
+        futures = {c.submit(diagnose_rig, rig, rig_out, extra, key, key=f"leveler-fleet-{rig.name}", retries=1):
+                   rig.name for rig, rig_out, key in jobs}
         for fut in as_completed(list(futures)):
             try:
                 rows[futures[fut]] = fut.result()
@@ -168,6 +218,8 @@ def parse_args(argv):
     ap.add_argument("--mode", choices=("auto", "replay", "closed_loop"), help="passed to each diagnosis")
     ap.add_argument("--fast", action="store_true", help="smaller fitting budget, passed to each diagnosis")
     ap.add_argument("--quiet", action="store_true", help="no progress line")
+    ap.add_argument("--fresh", action="store_true",
+                    help="diagnose every rig again (default: keep a rig diagnosed before from the same inputs)")
     return ap.parse_args(argv)
 
 
