@@ -26,14 +26,18 @@ typedef enum {
 extern const ini_table plant_config_table;
 
 /* The keys read by hand (plant_config_lists.c). */
-int plant_config_key_include(ini_file *r, void *cfg, const char *section, const char *key, const char *value);
-int plant_config_key_name(ini_file *r, void *cfg, const char *section, const char *key, const char *value);
-int plant_config_key_acc_type(ini_file *r, void *cfg, const char *section, const char *key, const char *value);
-int plant_config_key_area_poly(ini_file *r, void *cfg, const char *section, const char *key, const char *value);
-int plant_config_key_diaphragm_breaks(ini_file *r, void *cfg, const char *section, const char *key,
-                                      const char *value);
-int plant_config_key_diaphragm_segments(ini_file *r, void *cfg, const char *section, const char *key,
-                                        const char *value);
+int plant_config_key_include(ini_file *r, const ini_field *f, void *cfg, const char *section, const char *key,
+                             const char *value);
+int plant_config_key_name(ini_file *r, const ini_field *f, void *cfg, const char *section, const char *key,
+                          const char *value);
+int plant_config_key_acc_type(ini_file *r, const ini_field *f, void *cfg, const char *section, const char *key,
+                              const char *value);
+int plant_config_key_area_poly(ini_file *r, const ini_field *f, void *cfg, const char *section, const char *key,
+                               const char *value);
+int plant_config_key_diaphragm_breaks(ini_file *r, const ini_field *f, void *cfg, const char *section,
+                                      const char *key, const char *value);
+int plant_config_key_diaphragm_segments(ini_file *r, const ini_field *f, void *cfg, const char *section,
+                                        const char *key, const char *value);
 
 /* The reader's hooks (plant_config_reader.c). */
 void *plant_config_band(ini_file *r, const char *section, const char *group, const char *key, int *index);
