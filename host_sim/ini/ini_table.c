@@ -92,7 +92,7 @@ static int read_field(ini_file *r, size_t i, int index, void *obj, const ini_uni
     unsigned *given = &r->given_line[i * (size_t)t->max_instances + (size_t)index];
     if (*given)
         return ini_file_fail(r, section, key, value, "%s given twice in this file (first at line %u%s)", f->key,
-                               *given, has_units(t, f->unit) ? ", possibly under another unit" : "");
+                             *given, has_units(t, f->unit) ? ", possibly under another unit" : "");
     *given = r->guard.line;
     if (!ini_table_value(r, f, u, obj, section, key, value) || r->load->failed)
         return 0;
@@ -160,7 +160,7 @@ static int handler(void *user, const char *section, const char *key, const char 
     if (!group) {
         const char *see = l->table->see;
         return ini_file_fail(r, section, key, NULL, "unknown section [%s]%s%s%s", section, see ? " (see " : "",
-                               see ? see : "", see ? ")" : "");
+                             see ? see : "", see ? ")" : "");
     }
     return read_key(r, group, section, key, value);
 }

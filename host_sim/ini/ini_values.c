@@ -52,7 +52,7 @@ static int read_real(ini_file *r, const ini_field *f, const ini_unit *u, void *d
     double si = v * factor + off;
     if (si < f->min || si > f->max)
         return ini_file_fail(r, section, key, value, "out of range [%.6g, %.6g]%s%s", (f->min - off) / factor,
-                               (f->max - off) / factor, u ? " " : "", u ? u->suffix : "");
+                             (f->max - off) / factor, u ? " " : "", u ? u->suffix : "");
     if (f->store != INI_F64 && v != floor(v))
         return ini_file_fail(r, section, key, value, "must be a whole number in [%.10g, %.10g]", f->min, f->max);
     put_number(dst, f->store, v * factor); /* gauge: the caller adds the offset at the end (it may come later) */

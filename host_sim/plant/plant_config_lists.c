@@ -87,7 +87,7 @@ int plant_config_key_area_poly(ini_file *r, const ini_field *f, void *cfg, const
     int n;
     if (parse_list(value, tmp, PLANT_MAX_POLY, &n) != 0)
         return ini_file_fail(r, section, key, value, "expected 1..%d numbers (coefficients of DL^0, DL^1, ...)",
-                               PLANT_MAX_POLY);
+                             PLANT_MAX_POLY);
     memset(dst, 0, sizeof(double) * PLANT_MAX_POLY);
     memcpy(dst, tmp, sizeof(double) * (size_t)n);
     *cnt = n;
@@ -104,11 +104,11 @@ int plant_config_key_diaphragm_breaks(ini_file *r, const ini_field *f, void *cfg
     int n;
     if (parse_list(value, tmp, PLANT_MAX_DIAPHRAGM_SEGMENTS - 1, &n) != 0)
         return ini_file_fail(r, section, key, value, "expected 1..%d pressures, psia, rising",
-                               PLANT_MAX_DIAPHRAGM_SEGMENTS - 1);
+                             PLANT_MAX_DIAPHRAGM_SEGMENTS - 1);
     for (int i = 0; i < n; i++) {
         if (!(tmp[i] > 0.0 && tmp[i] < 300.0) || (i > 0 && !(tmp[i] > tmp[i - 1])))
             return ini_file_fail(r, section, key, value, "break %d: %g psia; breaks must rise, each in (0, 300) psia",
-                                   i + 1, tmp[i]);
+                                 i + 1, tmp[i]);
         p->diaphragm_break_pa[i] = tmp[i] * PLANT_PA_PER_PSI;
     }
     p->diaphragm_segments = n + 1;
@@ -126,11 +126,11 @@ int plant_config_key_diaphragm_segments(ini_file *r, const ini_field *f, void *c
     int n;
     if (parse_list(value, tmp, PLANT_MAX_DIAPHRAGM_SEGMENTS, &n) != 0)
         return ini_file_fail(r, section, key, value, "expected 1..%d numbers, one per segment",
-                               PLANT_MAX_DIAPHRAGM_SEGMENTS);
+                             PLANT_MAX_DIAPHRAGM_SEGMENTS);
     for (int i = 0; i < n; i++) {
         if (slope && !(tmp[i] >= 0.0 && tmp[i] <= 1000.0))
             return ini_file_fail(r, section, key, value, "segment %d: %g in^3/psi out of range [0, 1000]", i + 1,
-                                   tmp[i]);
+                                 tmp[i]);
         if (slope)
             p->diaphragm_slope_m3_per_pa[i] = tmp[i] * in3 / PLANT_PA_PER_PSI;
         else

@@ -104,7 +104,7 @@ int ini_table_read_text(ini_load *load, const char *name, const char *text);
 /* Sets the load's error (the first one wins): "path:line: [section] key = value: reason";
  * value NULL leaves out " = value", key NULL "[section] key". Returns 0. */
 __attribute__((format(printf, 5, 6))) int ini_file_fail(ini_file *r, const char *section, const char *key,
-                                                          const char *value, const char *fmt, ...);
+                                                        const char *value, const char *fmt, ...);
 
 /* A decimal integer without leading zeros in lo..hi: 1, or 0 after ini_file_fail. */
 int ini_file_decimal(ini_file *r, const char *section, const char *key, const char *value, long long lo,
