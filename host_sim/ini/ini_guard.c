@@ -34,6 +34,18 @@ int ini_guard_open(ini_guard *g, const char *path, char *err, size_t err_len)
     return 0;
 }
 
+int ini_guard_open_text(ini_guard *g, const char *name, const char *text, char *err, size_t err_len)
+{
+    memset(g, 0, sizeof *g);
+    g->path = name;
+    g->file = fmemopen((void *)text, strlen(text), "r");
+    if (g->file == NULL) {
+        snprintf(err, err_len, "%s: cannot open: %s", name, strerror(errno));
+        return -1;
+    }
+    return 0;
+}
+
 static ini_guard_entry *find(ini_guard *g, const char *section, const char *key)
 {
     for (size_t i = 0; i < g->n_seen; i++) {

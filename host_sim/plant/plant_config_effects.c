@@ -4,7 +4,7 @@
  * the plant runs, keyed by the catalogue's parameter names (SI, the unit in
  * the name) and checked against its accepted ranges. A parameter not given
  * keeps the catalogue's nominal value (the nominal plant's). The loader
- * (plant_config.c) reports file:line; this file knows the catalogue.
+ * (plant_config_reader.c) reports file:line; this file knows the catalogue.
  */
 #include <math.h>
 #include <stdio.h>

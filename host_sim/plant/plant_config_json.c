@@ -1,6 +1,6 @@
-/* The resolved config as JSON (plant.h: plant_config_write_json), from the loader's tables, built with cJSON. */
+/* The resolved config as JSON (plant.h: plant_config_write_json), from the loader's schema, built with cJSON. */
 #include "plant.h"
-#include "config_table.h"
+#include "plant_config_schema.h"
 #include "effects.h"
 
 #include <cjson/cJSON.h>
@@ -11,11 +11,12 @@
 #include <string.h>
 
 /* The SI suffix of a unit kind: its entry with factor 1, not gauge; "" for plain numbers. */
-static const char *si_suffix(kind k)
+static const char *si_suffix(int kind)
 {
-    for (size_t i = 0; i < config_unit_count; i++)
-        if (units[i].k == k && units[i].factor == 1.0 && !units[i].gauge)
-            return units[i].suffix;
+    const ini_table *t = &plant_config_table;
+    for (size_t i = 0; i < t->unit_count; i++)
+        if (t->units[i].kind == kind && t->units[i].factor == 1.0 && !t->units[i].gauge)
+            return t->units[i].suffix;
     return "";
 }
 
@@ -36,15 +37,15 @@ static void add_number(cJSON *obj, const char *key, double x)
 }
 
 /* "<base>_<SI suffix>": the field's value, in SI. */
-static void json_field(cJSON *obj, const field *fd, const char *base)
+static void json_field(cJSON *obj, const ini_field *fd, const char *base)
 {
-    const char *suffix = si_suffix(fd->k);
+    const char *suffix = si_suffix(fd->unit);
     char key[128];
-    snprintf(key, sizeof key, "%s%s%s", fd->base, suffix[0] ? "_" : "", suffix);
+    snprintf(key, sizeof key, "%s%s%s", fd->key, suffix[0] ? "_" : "", suffix);
     const char *v = base + fd->offset;
-    double x = fd->t == T_DOUBLE ? *(const double *)v
-               : fd->t == T_INT  ? (double)*(const int *)v
-                                 : (double)*(const uint32_t *)v;
+    double x = fd->store == INI_F64 ? *(const double *)v
+               : fd->store == INI_INT ? (double)*(const int *)v
+                                      : (double)*(const uint32_t *)v;
     add_number(obj, key, x);
 }
 
@@ -72,9 +73,9 @@ static cJSON *json_bands(const plant_params *p)
                 last = 0;
         }
         cJSON *item = cJSON_CreateObject();
-        for (size_t i = 0; i < config_field_count; i++)
-            if (strcmp(fields[i].section, "hysteresis") == 0)
-                json_field(item, &fields[i], (const char *)band);
+        for (size_t i = 0; i < plant_config_table.field_count; i++)
+            if (strcmp(plant_config_table.fields[i].section, PLANT_CONFIG_BANDS) == 0)
+                json_field(item, &plant_config_table.fields[i], (const char *)band);
         add_number(item, "covers_from_n", from);
         if (last)
             cJSON_AddNullToObject(item, "covers_below_n");
@@ -85,7 +86,7 @@ static cJSON *json_bands(const plant_params *p)
     return list;
 }
 
-/* The keys read by hand (not in the field table), after their section's fields. */
+/* The keys read by hand (INI_CUSTOM in the schema), after their section's fields. */
 static void json_extras(cJSON *sec, const char *section, const plant_params *p)
 {
     static const char *const acc_types[] = {"none", "tube", "diaphragm"};
@@ -124,15 +125,16 @@ static cJSON *config_json(const plant_config *c)
     cJSON_AddStringToObject(head, "name", c->name);
     cJSON_AddStringToObject(head, "path", c->path);
     cJSON *sec = NULL;
-    for (size_t i = 0; i < config_field_count; i++) {
-        const field *fd = &fields[i];
-        if (strcmp(fd->section, "hysteresis") == 0)
-            continue;
+    const ini_table *t = &plant_config_table;
+    for (size_t i = 0; i < t->field_count; i++) {
+        const ini_field *fd = &t->fields[i];
+        if (fd->type != INI_REAL || strcmp(fd->section, PLANT_CONFIG_BANDS) == 0)
+            continue; /* the bands below, the keys read by hand with their section's fields */
         sec = cJSON_GetObjectItemCaseSensitive(root, fd->section);
         if (sec == NULL)
             sec = cJSON_AddObjectToObject(root, fd->section);
         json_field(sec, fd, (const char *)c);
-        if (i + 1 == config_field_count || strcmp(fields[i + 1].section, fd->section) != 0)
+        if (i + 1 == t->field_count || strcmp(t->fields[i + 1].section, fd->section) != 0)
             json_extras(sec, fd->section, &c->plant);
     }
     cJSON_AddItemToObject(root, "hysteresis", json_bands(&c->plant));

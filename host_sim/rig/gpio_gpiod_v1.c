@@ -22,7 +22,7 @@ static int apply(void *impl, const bool on[HAL_OUT_COUNT], char *err, size_t err
         if (g->line[o] == NULL)
             continue;
         if (gpiod_line_set_value(g->line[o], on[o] ? 1 : 0) != 0 && rc == 0) {
-            snprintf(err, err_len, "gpiod: setting output %s: %s", rig_output_names[o], strerror(errno));
+            snprintf(err, err_len, "gpiod: setting output %s: %s", rig_config_output_names[o], strerror(errno));
             rc = -1; /* keep going: the other outputs must still follow */
         }
     }
@@ -56,13 +56,13 @@ int rig_gpiod_open(const rig_config *cfg, rig_output_backend *out, char *err, si
             continue;
         g->chip[o] = gpiod_chip_open_lookup(pin->chip);
         if (g->chip[o] == NULL) {
-            snprintf(err, err_len, "gpiod: [output.%s] chip: cannot open '%s': %s", rig_output_names[o], pin->chip,
+            snprintf(err, err_len, "gpiod: [output.%s] chip: cannot open '%s': %s", rig_config_output_names[o], pin->chip,
                      strerror(errno));
             goto fail;
         }
         g->line[o] = gpiod_chip_get_line(g->chip[o], (unsigned)pin->line);
         if (g->line[o] == NULL) {
-            snprintf(err, err_len, "gpiod: [output.%s] line: no line %u on '%s': %s", rig_output_names[o],
+            snprintf(err, err_len, "gpiod: [output.%s] line: no line %u on '%s': %s", rig_config_output_names[o],
                      (unsigned)pin->line, pin->chip, strerror(errno));
             goto fail;
         }
@@ -70,7 +70,7 @@ int rig_gpiod_open(const rig_config *cfg, rig_output_backend *out, char *err, si
         /* default value 0 = de-energised from the very first instant */
         if (gpiod_line_request_output_flags(g->line[o], cfg->consumer, flags, 0) != 0) {
             snprintf(err, err_len, "gpiod: [output.%s] line: cannot request line %u on '%s': %s",
-                     rig_output_names[o], (unsigned)pin->line, pin->chip, strerror(errno));
+                     rig_config_output_names[o], (unsigned)pin->line, pin->chip, strerror(errno));
             g->line[o] = NULL; /* not ours to release */
             goto fail;
         }

@@ -23,7 +23,7 @@ static int apply(void *impl, const bool on[HAL_OUT_COUNT], char *err, size_t err
             continue;
         enum gpiod_line_value v = on[o] ? GPIOD_LINE_VALUE_ACTIVE : GPIOD_LINE_VALUE_INACTIVE;
         if (gpiod_line_request_set_value(g->request[o], g->offset[o], v) != 0 && rc == 0) {
-            snprintf(err, err_len, "gpiod: setting output %s: %s", rig_output_names[o], strerror(errno));
+            snprintf(err, err_len, "gpiod: setting output %s: %s", rig_config_output_names[o], strerror(errno));
             rc = -1;
         }
     }
@@ -97,7 +97,7 @@ int rig_gpiod_open(const rig_config *cfg, rig_output_backend *out, char *err, si
         g->request[o] = request_one(cfg, pin);
         if (g->request[o] == NULL) {
             snprintf(err, err_len, "gpiod: [output.%s] chip/line: cannot request line %u on '%s': %s",
-                     rig_output_names[o], (unsigned)pin->line, pin->chip, strerror(errno));
+                     rig_config_output_names[o], (unsigned)pin->line, pin->chip, strerror(errno));
             close_all(g);
             return -1;
         }

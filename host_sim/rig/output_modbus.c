@@ -127,7 +127,7 @@ static int apply(void *impl, const bool on[HAL_OUT_COUNT], char *err, size_t err
             continue;
         bool ok = modbus_write_bit(ctx, m->coil[o], on[o] ? 1 : 0) == 1;
         if (!ok && rc == 0) {
-            snprintf(err, err_len, "modbus outputs: writing coil %u (%s): %s", m->coil[o], rig_output_names[o],
+            snprintf(err, err_len, "modbus outputs: writing coil %u (%s): %s", m->coil[o], rig_config_output_names[o],
                      modbus_strerror(errno));
             rc = -1;
         }

@@ -1,6 +1,6 @@
 /*
- * leveler-rig configuration: one INI file (libinih), see boards/linux-rig/rig.ini
- * for every key with its meaning. Parse errors name the file, the line, the
+ * leveler-rig configuration: one INI file, read by the one INI reader
+ * (ini_table.h); see boards/linux-rig/rig.ini for every key with its meaning. Parse errors name the file, the line, the
  * [section] key and, for numbers, the allowed range.
  */
 #ifndef LEVELER_RIG_CONFIG_H
@@ -110,10 +110,10 @@ void rig_config_defaults(rig_config *cfg);
 int rig_config_load(const char *path, rig_config *cfg, char *err, size_t err_len);
 
 /* A numeric IPv4/IPv6 address or localhost -> canonical text in out; -1 otherwise. */
-int rig_parse_address(const char *value, char *out, size_t cap);
+int rig_config_parse_address(const char *value, char *out, size_t cap);
 
 /* Names used in the config for the HAL channels and outputs. */
-extern const char *const rig_channel_names[HAL_ADC_COUNT];
-extern const char *const rig_output_names[HAL_OUT_COUNT];
+extern const char *const rig_config_channel_names[HAL_ADC_COUNT];
+extern const char *const rig_config_output_names[HAL_OUT_COUNT];
 
 #endif

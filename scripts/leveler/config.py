@@ -1,7 +1,7 @@
 """The simulator's config as the C loader resolves it (docs/config-format.md).
 
-There is one config loader, the simulator's (host_sim/plant/plant_config.c:
-units, ranges, includes, defaults, [effect.NAME] sections). Python asks it
+There is one config loader, the simulator's (host_sim/plant/plant_config_*.c:
+units, ranges, includes, the built-in thesis-900lb.ini, [effect.NAME] sections). Python asks it
 through the engine's one binding (leveler.engine: diag_config_json, the same
 JSON ``leveler-sim --dump-config`` prints): every key in SI with its SI unit
 suffix, the hysteresis bands with the load range each covers, the effects.

@@ -37,11 +37,14 @@ static const plant_fx_model *form(int id)
     return m;
 }
 
-/* The thesis's 900 lb plant; isothermal = true: n = 1, Z = 1 (P V / (R T) is the gas's mass). */
+/* The thesis's 900 lb plant without its end stops (13.76..17.61 in): the free
+ * spring; isothermal = true: n = 1, Z = 1 (P V / (R T) is the gas's mass). */
 static plant_params thesis(bool isothermal)
 {
     plant_config cfg;
     plant_config_defaults(&cfg);
+    cfg.plant.height_min_m = 0.0;
+    cfg.plant.height_max_m = 1.0;
     if (isothermal) {
         cfg.plant.polytropic_n = 1.0;
         cfg.plant.compressibility = 1.0;

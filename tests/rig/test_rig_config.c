@@ -83,7 +83,10 @@ static void errors_name_file_line_key_and_range(void **state)
     expect_error("; comment\n\n[sensor.height]\nregister = 70000\n" OUTPUTS,
                  ":4: [sensor.height] register: 70000 is out of range (allowed 0..65535)");
     expect_error("[sensor.p_spring]\ncounts_hi = 5000\n" OUTPUTS,
-                 ":2: [sensor.p_spring] counts_hi: 5000 is out of range (allowed 0..4095)");
+                 ":2: [sensor.p_spring] counts_hi = 5000: out of range [0, 4095]");
+    expect_error("[sensor.load]\ncounts_lo = 3\n" OUTPUTS,
+                 ":2: [sensor.load] counts_lo: unknown key (allowed enabled, table, register, signed, raw_lo, raw_hi, "
+                 "load_n_lo, load_n_hi)");
     expect_error(OUTPUTS "[supervision]\nread_only = maybe\n",
                  ":12: [supervision] read_only: 'maybe' is not a boolean");
     expect_error("[rig]\ncolour = blue\n" OUTPUTS, ":2: [rig] colour: unknown key");
@@ -144,8 +147,8 @@ static void hardening_errors(void **state)
     assert_int_equal(load_text(OUTPUTS "[supervision]\naddress = 0:0:0:0:0:0:0:1\n", &cfg, err, sizeof err), 0);
     assert_string_equal(cfg.supervision_address, "::1");
     char out[64];
-    assert_int_equal(rig_parse_address("255.255.255.255", out, sizeof out), 0);
-    assert_int_equal(rig_parse_address("127.1", out, sizeof out), -1);
+    assert_int_equal(rig_config_parse_address("255.255.255.255", out, sizeof out), 0);
+    assert_int_equal(rig_config_parse_address("127.1", out, sizeof out), -1);
 }
 
 /* Issue 23: a watchdog no module can honour (it trips between the rig's

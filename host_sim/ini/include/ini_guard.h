@@ -35,6 +35,8 @@ typedef struct {
 
 /* 0, or -1 with "path: reason" in err (missing, unreadable, a directory). */
 int ini_guard_open(ini_guard *g, const char *path, char *err, size_t err_len);
+/* The same for a text compiled into the program; name stands for its file in messages. */
+int ini_guard_open_text(ini_guard *g, const char *name, const char *text, char *err, size_t err_len);
 char *ini_guard_reader(char *str, int num, void *guard);
 /* 0 the first time a key is seen in its section; -1 with
  * "path:line: [section] key: repeated (first at line N)" in err. */

@@ -154,11 +154,13 @@ typedef struct {
     char path[PLANT_PATH_MAX];
 } plant_config;
 
-/* The thesis 900 lb case (parameter table, Appendix B program). */
+/* The thesis 900 lb case (parameter table, Appendix B program): the built-in
+ * config, host_sim/configs/thesis-900lb.ini compiled into the program. */
 void plant_config_defaults(plant_config *out);
 
 /* Defaults, then the file (docs/config-format.md). 0 on success; else -1 and
- * err = "file:line: [section] key = value: reason (allowed range ...)". */
+ * err = "file:line: [section] key = value: reason (allowed range ...)"
+ * (without " = value" where the reason is an unknown key or section). */
 int plant_config_load(const char *path, plant_config *out, char *err, size_t err_len);
 
 /* The resolved config as JSON, SI, keys named like the INI's with the SI
