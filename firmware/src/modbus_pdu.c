@@ -273,7 +273,11 @@ static void write_multiple(const uint8_t *pdu, size_t pdu_len, bool broadcast, l
     }
     uint16_t items[SCRATCH_ITEMS]; /* quantity <= SCRATCH_ITEMS: checked */
     for (uint16_t i = 0; i < quantity; i++) {
-        items[i] = bits ? (uint16_t)((pdu[6u + i / 8u] >> (i % 8u)) & 1u) : be16(&pdu[6u + 2u * i]);
+        if (bits) {
+            items[i] = (uint16_t)(((unsigned)pdu[6u + i / 8u] >> (i % 8u)) & 1u);
+        } else {
+            items[i] = be16(&pdu[6u + 2u * i]);
+        }
     }
     write_and_echo(pdu, 5u, table, start, quantity, items, out);
 }
