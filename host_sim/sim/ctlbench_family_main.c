@@ -123,22 +123,28 @@ static void print_rig_commissioned(const rig_result *r)
            a->overshoot_max_m * IN_PER_M, a->unsettled_steps);
 }
 
+/* The two steps of one run (algorithm 3 against the limit), its overshoot and unsettled steps, into o. */
+static void json_steps(cJSON *o, const ctlbench_metrics *a3, const ctlbench_metrics *lim, const double ratio[2])
+{
+    cJSON *steps = cJSON_AddArrayToObject(o, "steps");
+    for (size_t k = 0; k < 2; k++) {
+        cJSON *s = cJSON_CreateObject();
+        cJSON_AddNumberToObject(s, "alg3_return_s", a3->step[k].return_s);
+        cJSON_AddNumberToObject(s, "limit_return_s", lim->step[k].return_s);
+        cJSON_AddNumberToObject(s, "ratio", isfinite(ratio[k]) ? ratio[k] : -1.0);
+        cJSON_AddNumberToObject(s, "switchings", a3->step[k].switchings);
+        cJSON_AddItemToArray(steps, s);
+    }
+    cJSON_AddNumberToObject(o, "overshoot_in", a3->overshoot_max_m * IN_PER_M);
+    cJSON_AddNumberToObject(o, "unsettled_steps", a3->unsettled_steps);
+}
+
 static cJSON *json_commissioned(const rig_result *r)
 {
     cJSON *o = cJSON_CreateObject();
     cJSON_AddStringToObject(o, "result", sim_commissioning_result_name(r->commission_result));
     cJSON_AddNumberToObject(o, "took_s", r->commission_s);
-    cJSON *steps = cJSON_AddArrayToObject(o, "steps");
-    for (size_t k = 0; k < 2; k++) {
-        cJSON *s = cJSON_CreateObject();
-        cJSON_AddNumberToObject(s, "alg3_return_s", r->a3c.step[k].return_s);
-        cJSON_AddNumberToObject(s, "limit_return_s", r->limc.step[k].return_s);
-        cJSON_AddNumberToObject(s, "ratio", isfinite(r->ratio_c[k]) ? r->ratio_c[k] : -1.0);
-        cJSON_AddNumberToObject(s, "switchings", r->a3c.step[k].switchings);
-        cJSON_AddItemToArray(steps, s);
-    }
-    cJSON_AddNumberToObject(o, "overshoot_in", r->a3c.overshoot_max_m * IN_PER_M);
-    cJSON_AddNumberToObject(o, "unsettled_steps", r->a3c.unsettled_steps);
+    json_steps(o, &r->a3c, &r->limc, r->ratio_c);
     return o;
 }
 
@@ -154,17 +160,7 @@ static cJSON *json_rig(const rig_result *r)
     cJSON_AddItemToObject(o, "up_shift_psi", cJSON_CreateDoubleArray(g->up_shift_psi, CTLBENCH_FAMILY_BANDS));
     cJSON_AddItemToObject(o, "gap_psi", cJSON_CreateDoubleArray(g->gap_psi, CTLBENCH_FAMILY_BANDS));
     cJSON_AddNumberToObject(o, "rest_switchings", r->a3.rest_switchings);
-    cJSON *steps = cJSON_AddArrayToObject(o, "steps");
-    for (size_t k = 0; k < 2; k++) {
-        cJSON *s = cJSON_CreateObject();
-        cJSON_AddNumberToObject(s, "alg3_return_s", r->a3.step[k].return_s);
-        cJSON_AddNumberToObject(s, "limit_return_s", r->lim.step[k].return_s);
-        cJSON_AddNumberToObject(s, "ratio", isfinite(r->ratio[k]) ? r->ratio[k] : -1.0);
-        cJSON_AddNumberToObject(s, "switchings", r->a3.step[k].switchings);
-        cJSON_AddItemToArray(steps, s);
-    }
-    cJSON_AddNumberToObject(o, "overshoot_in", r->a3.overshoot_max_m * IN_PER_M);
-    cJSON_AddNumberToObject(o, "unsettled_steps", r->a3.unsettled_steps);
+    json_steps(o, &r->a3, &r->lim, r->ratio);
     cJSON_AddItemToObject(o, "commissioned", json_commissioned(r));
     return o;
 }
