@@ -44,15 +44,21 @@ static void test_refused_under_algorithm1(void **state)
     assert_int_equal(reason, LEVELER_REASON_READ_ONLY);
 }
 
-/* Rest, then the vent probe; nothing ever moves: at 60 s a timeout, algorithm 3 back in charge. */
-static void test_timeout_when_nothing_moves(void **state)
+/* Algorithm 3 on a platform at rest mid-band; the commission coil written. */
+static void start_commissioning(void)
 {
-    (void)state;
     boot_valid();
     assert_int_equal(write_hr_u16(LEVELER_HR_ALGORITHM, LEVELER_ALGO_HYSTERESIS_AWARE, NULL), LEVELER_REG_OK);
     set_sensors(MID_BAND_UM, P_NOMINAL_PA, P_NOMINAL_PA, P_NOMINAL_PA);
     run_ticks(10);
     assert_int_equal(write_coil(LEVELER_COIL_COMMISSION, 1), LEVELER_REG_OK);
+}
+
+/* Rest, then the vent probe; nothing ever moves: at 60 s a timeout, algorithm 3 back in charge. */
+static void test_timeout_when_nothing_moves(void **state)
+{
+    (void)state;
+    start_commissioning();
     run_ticks(1);
     assert_int_equal(read_ir_u16(LEVELER_IR_COMMISSION_STEP), LEVELER_COMMISSION_REST);
     assert_int_equal(read_coil(LEVELER_COIL_COMMISSION), 1);
@@ -73,11 +79,7 @@ static void test_timeout_when_nothing_moves(void **state)
 static void test_fault_ends_it(void **state)
 {
     (void)state;
-    boot_valid();
-    assert_int_equal(write_hr_u16(LEVELER_HR_ALGORITHM, LEVELER_ALGO_HYSTERESIS_AWARE, NULL), LEVELER_REG_OK);
-    set_sensors(MID_BAND_UM, P_NOMINAL_PA, P_NOMINAL_PA, P_NOMINAL_PA);
-    run_ticks(10);
-    assert_int_equal(write_coil(LEVELER_COIL_COMMISSION, 1), LEVELER_REG_OK);
+    start_commissioning();
     run_ticks(500);
     assert_true(venting());
     fake_hal_set_adc(HAL_ADC_HEIGHT, 4095); /* a short */
