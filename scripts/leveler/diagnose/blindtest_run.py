@@ -2,8 +2,8 @@
 leveler.sweep.engine.client), or one after the other in this process (--serial).
 
 A case (make the logs with a truth, diagnose them as a separate process, run the
-proposed experiment) is one Dask task, keyed by the case's folder so that none is
-submitted twice; a task that raised or lost its worker runs again once (Dask's
+proposed experiment) is one Dask task, keyed by this run and the case's index
+(its folder's number) so that none is submitted twice; a task that raised or lost its worker runs again once (Dask's
 retries and rescheduling). On Dask each diagnosis runs with --jobs 1: the cases
 are the parallel work, one core each. Results are reported as they finish and
 returned in the cases' order, so the tables do not depend on who finished first.

@@ -180,7 +180,7 @@ def fit_nested(problem, effect, starts=None, max_nfev=60, seed=0, polish=4):
         u[base] = ub
         return u
 
-    fun = lambda u: problem.residual_vector(effect.name, from_unit(effect, u))
+    fun = _residual(problem, effect)
     ub, cost_b = _search(lambda ub: fun(embed(ub)), _starts(effect, base, starts, seed), max_nfev, polish)
     u0 = embed(ub)
     whole = qmc.Halton(d, scramble=True, seed=seed).random(max(2, starts or start_count(d)))
@@ -192,9 +192,13 @@ def fit_nested(problem, effect, starts=None, max_nfev=60, seed=0, polish=4):
 
 def fit_from(problem, effect, cand, max_nfev=60, polish=4):
     """The cost at each start (rows of unit-box points), least_squares from the best `polish`."""
-    fun = lambda u: problem.residual_vector(effect.name, from_unit(effect, u))
-    u, cost = _search(fun, cand, max_nfev, polish)
+    u, cost = _search(_residual(problem, effect), cand, max_nfev, polish)
     return _fit_result(problem, effect, u, cost)
+
+
+def _residual(problem, effect):
+    """The effect's residual vector as a function of a unit-box point."""
+    return lambda u: problem.residual_vector(effect.name, from_unit(effect, u))
 
 
 def _search(fun, cand, max_nfev, polish, costs=None):
