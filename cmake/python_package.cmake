@@ -1,8 +1,8 @@
 # The compiled parts of the leveler Python package, for pip install .
 # (pyproject.toml: scikit-build-core builds the targets named there and
 # installs the component "python" into the wheel's platlib):
-#   leveler/_lib/   libleveler_diag.so (the diagnosis's C plant), libleveler_truth.so
-#                   (the blind test's truths), libleveler_pil_plant.so (the PIL plant)
+#   leveler/_lib/   libleveler_diag.so (the engine: the C plant for the diagnosis, the
+#                   config loader and the PIL harness), libleveler_truth.so (the blind test's truths)
 #   leveler/_bin/   leveler-sim (the one config loader: leveler-sim --dump-config)
 #   leveler/_data/  the simulator configs, the effect and truth catalogues, the
 #                   register map (registers.json: the mode register's values), the sweep studies
@@ -23,15 +23,13 @@ endif()
 add_subdirectory(firmware)
 add_subdirectory(host_sim)
 
-set(LEVELER_PY_TARGETS leveler_diag leveler_truth leveler_pil_plant leveler-sim)
+set(LEVELER_PY_TARGETS leveler_diag leveler_truth leveler-sim)
 foreach(t IN LISTS LEVELER_PY_TARGETS)
   if(NOT TARGET ${t})
     message(FATAL_ERROR "LEVELER_PYTHON_PACKAGE: target ${t} is not configured (see the messages above)")
   endif()
 endforeach()
-# libleveler_pil_plant.so links libleveler_diag.so beside it
-set_target_properties(leveler_pil_plant PROPERTIES INSTALL_RPATH "$ORIGIN")
-install(TARGETS leveler_diag leveler_truth leveler_pil_plant LIBRARY DESTINATION leveler/_lib COMPONENT python)
+install(TARGETS leveler_diag leveler_truth LIBRARY DESTINATION leveler/_lib COMPONENT python)
 install(TARGETS leveler-sim RUNTIME DESTINATION leveler/_bin COMPONENT python)
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/host_sim/configs/ DESTINATION leveler/_data/configs
         COMPONENT python FILES_MATCHING PATTERN "*.ini")

@@ -2,7 +2,7 @@
 
 There is one config loader, the simulator's (host_sim/plant/plant_config_*.c:
 units, ranges, includes, the built-in thesis-900lb.ini, [effect.NAME] sections). Python asks it
-through the engine's one binding (leveler.engine: diag_config_json, the same
+through the engine's one binding (leveler.engine: Engine(path).config_json(), the same
 JSON ``leveler-sim --dump-config`` prints): every key in SI with its SI unit
 suffix, the hysteresis bands with the load range each covers, the effects.
 Errors are the loader's own ``file:line: [section] key = value: reason``.
@@ -20,9 +20,10 @@ import os
 from typing import List, Optional
 
 from . import engine, paths
+from .errors import InputError
 
 
-class ConfigError(ValueError):
+class ConfigError(InputError, ValueError):
     """``str()`` reads ``file:line: [section] key ...: what is wrong`` (the C loader's words)."""
 
 
@@ -90,7 +91,7 @@ def find_sim():
 def _resolved(path, mtime):
     try:
         return engine.config_json(path)
-    except engine.EngineError as e:
+    except (engine.EngineError, InputError) as e:
         raise ConfigError(str(e)) from None
 
 

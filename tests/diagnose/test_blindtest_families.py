@@ -9,7 +9,7 @@ import pytest
 
 from leveler import config as leveler_config
 from leveler.diagnose import blindtest as bt
-from leveler.diagnose import cplant as cp
+from leveler import engine
 
 
 def _flat(doc):
@@ -47,10 +47,10 @@ def test_second_family_covers_every_effect_twice_and_unknowns():
 
 def test_every_form_runs_and_moves_the_plant(cplant, tmp_path):
     try:
-        cp.find_truth_library()
+        engine.find_truth_library()
     except Exception as e:      # the truth library is built with the blind test
         pytest.skip(f"libleveler_truth.so not available: {e}")
-    t = cp.tick_grid(50.0)
+    t = engine.tick_grid(50.0)
     load = np.where((t >= 5.0) & (t < 30.0), 1140.0, 900.0) * bt.LB
     rig = bt.rig_config(str(tmp_path), "900lb", 1)
     nominal = bt.generate_form(cplant, rig, t, load, 0, [])

@@ -2,7 +2,6 @@
 one C plant runs them for every program. Checked against the diagnosis
 library asked for the same effect explicitly (an independent route through
 its own request arrays), and the loader's file:line errors."""
-import ctypes
 import os
 import subprocess
 
@@ -41,15 +40,9 @@ def sim(config, log):
 
 
 def from_config_start(cplant, config, kind, values, t, load):
-    """diag_simulate in closed loop from the config's own initial state (init NULL), as leveler-sim runs."""
-    kinds, p = cp._effect_arrays(kind, values)
-    n = len(t)
-    out = np.empty((n, 4))
-    cmd = np.empty((n, 4), dtype=np.int32)
-    err = ctypes.create_string_buffer(512)
-    rc = cplant.simulate_fn(config.encode(), n, cp._dptr(t), cp._dptr(load), None, None, cp._iptr(kinds),
-                            cp._dptr(p), None, cp._dptr(out), cp._iptr(cmd), err, len(err))
-    assert rc == 0, err.value
+    """The engine in closed loop from the config's own initial state (init None), as leveler-sim runs."""
+    kinds, p = cp.effect_arrays(kind, values)
+    out, _ = cplant.handle(config).run(t, load, kinds=kinds, params=p)
     return out
 
 

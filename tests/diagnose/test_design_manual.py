@@ -12,7 +12,7 @@ import pytest
 
 from leveler.diagnose import blindtest as bt
 from leveler.diagnose import design, effects as fx, fit, separability
-from leveler.diagnose.cplant import read_schedule
+from leveler.engine import read_schedule
 from leveler.diagnose.model import REPLAY
 from leveler.diagnose.runs import load_run
 

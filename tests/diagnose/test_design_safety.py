@@ -1,5 +1,5 @@
 """The experiment design's safety check asks the C side which manual requests
-are in force when (design.requested, cplant.schedule_apply), and drops a
+are in force when (design.requested, engine.schedule_apply), and drops a
 manual sequence the firmware's supervisor overrides. The expectations come
 from the documented rules, not from the code under test: a row is due half a
 tick early at the latest (stepper.h), and the supervisor latches its chatter

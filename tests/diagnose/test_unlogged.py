@@ -9,7 +9,7 @@ import pytest
 
 from conftest import LB, thesis_schedule
 from leveler.diagnose import design, separability
-from leveler.diagnose.cplant import initial_state
+from leveler.diagnose.start_state import initial_state
 from leveler.diagnose.fit import Problem, cost_to_gap, run_residual, start_shifts
 from leveler.diagnose.model import REPLAY
 from leveler.diagnose.runs import Run

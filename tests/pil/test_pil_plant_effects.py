@@ -1,4 +1,4 @@
-"""The PIL harness's plant (libleveler_pil_plant.so) runs the config's
+"""The PIL harness's plant (the engine's stepping API) runs the config's
 [effect.NAME] sections: driven tick for tick with the actuators leveler-sim's
 firmware chose for the same config, it follows leveler-sim's plant state (the
 log's true_* columns) to the log's digits. No image needed."""

@@ -10,7 +10,7 @@ import json
 
 import numpy as np
 
-from leveler import config, paths
+from leveler import config, engine, paths
 from leveler.diagnose import cplant, model, runs
 
 NAME = "thesis-900lb"
@@ -19,7 +19,7 @@ LB_N = 4.4482216152605
 sim = model.make_simulator()
 sim.check_config(NAME)                    # the name, resolved in cplant.CONFIG_DIR, checked by the C loader
 cfg = config.load(cplant.config_path(NAME))
-t = np.round(np.arange(0.0, 40.0 + 1e-9, cplant.tick_s()), 2)
+t = np.round(np.arange(0.0, 40.0 + 1e-9, engine.tick_s()), 2)
 load = np.where((t >= 5.0) & (t < 25.0), cfg.base_load_n + 240 * LB_N, cfg.base_load_n)
 truth = sim.generate(NAME, t, load, None, None)
 run = runs.Run(path="truth", t_s=t, signals=truth.signals, load_n=load, commands=truth.commands)
@@ -27,7 +27,7 @@ replay = sim.simulate(NAME, run, None, {}, model.CLOSED_LOOP)
 h = truth.signals["height_m"]
 print(json.dumps({
     "package": paths.PACKAGE, "checkout": paths.ROOT, "config_dir": cplant.CONFIG_DIR,
-    "diag_lib": cplant.find_library(), "truth_lib": cplant.find_truth_library(), "sim": config.find_sim(),
+    "diag_lib": engine.find_library(), "truth_lib": engine.find_truth_library(), "sim": config.find_sim(),
     "band_m": [cfg.band_lower_m, cfg.band_upper_m],
     "height_start_m": float(h[0]), "height_min_m": float(h.min()), "height_at_25s_m": float(h[t == 25.0][0]),
     "height_end_m": float(h[-1]),

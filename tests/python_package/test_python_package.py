@@ -24,9 +24,9 @@ SIMULATE = Path(__file__).with_name("simulate_900lb.py")
 SCRIPTS = ["leveler-diagnose", "leveler-blindtest", "leveler-compare", "leveler-diagnose-bench", "leveler-report",
            "leveler-ctlbench-plot", "leveler-sweep"]   # leveler-sweep --version without the [sweep] extra (dask, pyarrow load when it runs)
 COMPILED = ["leveler/_lib/libleveler_diag.so", "leveler/_lib/libleveler_truth.so",
-            "leveler/_lib/libleveler_pil_plant.so", "leveler/_bin/leveler-sim"]
+            "leveler/_bin/leveler-sim"]
 # the checkout's own build, from CTest; the installed package must find none of it
-CHECKOUT_ENV = ("LEVELER_DIAG_LIB", "LEVELER_TRUTH_LIB", "LEVELER_SIM", "LEVELER_PIL_PLANT_LIB", "PYTHONPATH",
+CHECKOUT_ENV = ("LEVELER_DIAG_LIB", "LEVELER_TRUTH_LIB", "LEVELER_SIM", "PYTHONPATH",
                 "LEVELER_PYTHON", "PYTHONHOME", "VIRTUAL_ENV")
 
 
@@ -139,12 +139,22 @@ def test_installed_c_plant_simulates_as_the_checkout(installed):
         assert got[key] == pytest.approx(want[key], abs=1e-6), key
 
 
-def test_installed_pil_plant_finds_its_diag_library(installed):
-    """libleveler_pil_plant.so links libleveler_diag.so beside it ($ORIGIN)."""
+def test_installed_engine_steps_the_plant_for_the_pil_harness(installed):
+    """The PIL harness's plant is the installed engine's stepping API: 100 ticks
+    from the built-in config's initial state, every actuator off after the first
+    tick's [initial] ones, land on the checkout's engine's state to 1e-9 and one
+    second later."""
     bin_dir, outside, env = installed
-    code = ("import ctypes; from leveler import paths; "
-            "ctypes.CDLL(paths.packaged('_lib', 'libleveler_pil_plant.so')); print('ok')")
-    assert run([str(bin_dir / "python"), "-c", code], cwd=outside, env=env).stdout == "ok\n"
+    code = ("import json; from leveler import engine; e = engine.Engine(None); e.step_open(); "
+            "s0 = e.step_state(); [e.step([0, 0, 0, 0]) for _ in range(100)]; "
+            "print(json.dumps([e.path, s0, e.step_state()]))")
+    path, s0, s1 = json.loads(run([str(bin_dir / "python"), "-c", code], cwd=outside, env=env).stdout)
+    assert Path(path).is_relative_to(Path(bin_dir).parent), path
+    assert s1[0] == pytest.approx(s0[0] + 1.0, abs=1e-9)
+    _, w0, w1 = json.loads(run([sys.executable, "-c", code], cwd=outside,
+                               env=dict(os.environ, PYTHONPATH=str(ROOT / "scripts"))).stdout)
+    for got, want in ((s0, w0), (s1, w1)):
+        assert got[:4] == pytest.approx(want[:4], rel=1e-9), (got, want)
 
 
 def test_installed_diagnosis_resolves_a_config_name(installed):

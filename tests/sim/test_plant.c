@@ -553,7 +553,7 @@ static uint16_t latched_after_noisy_run(const char *controller_extra)
     return leveler_app_status()->latched_fault_bits;
 }
 
-/* plant_spring_volume_at (the replay's start volume, diag_shim.c) against the
+/* plant_spring_volume_at (the replay's start volume, engine_run.c) against the
  * plant's own integration of dV2 = Ae dy: the platform lifted by filling the
  * spring, then dropped by venting it, under one load; the volume the plant
  * carries at each height is the one the function gives for that height. */

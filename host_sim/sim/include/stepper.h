@@ -1,7 +1,7 @@
 /*
  * THE tick loop of a simulated run, shared by leveler-sim (simloop.c), the
  * plant server (host_sim/rig/plant_server.c), the diagnosis library
- * (host_sim/diagnose/diag_shim.c) and anything else that steps the plant
+ * (the engine, host_sim/diagnose/engine_run.c) and anything else that steps the plant
  * against a controller.
  *
  * Each tick k at time t_k:

@@ -8,6 +8,7 @@ import tempfile
 import time
 
 from leveler import cli as leveler_cli
+from leveler import engine
 
 from . import blindtest
 from .model import make_simulator
@@ -44,11 +45,10 @@ def main(argv=None):
 
 
 def _thesis_grid():
-    from . import cplant
-    t = cplant.tick_grid(55.0)
+    t = engine.tick_grid(55.0)
     lb = blindtest.LB
-    load = cplant.scenario_loads(t, {"base_load_n": 900 * lb, "step_load_n": 200 * lb,
-                                     "step_on_s": 5.0, "step_off_s": 35.0, "end_s": 55.0})
+    load = engine.scenario_loads(t, {"base_load_n": 900 * lb, "step_load_n": 200 * lb,
+                                    "step_on_s": 5.0, "step_off_s": 35.0, "end_s": 55.0})
     return t, load
 
 

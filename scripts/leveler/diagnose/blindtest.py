@@ -49,14 +49,15 @@ import numpy as np
 import leveler
 from leveler import cli as leveler_cli
 from leveler import config as leveler_config
-from leveler import paths, thesis
+from leveler import engine, paths, thesis
 
 from . import blindtest_run
 from . import cplant
 from . import design
 from . import effects as fx
 from . import runs
-from .cplant import CONFIG_DIR, read_schedule, tick_grid
+from .cplant import CONFIG_DIR
+from leveler.engine import read_schedule, tick_grid
 from .model import make_simulator
 
 LB = thesis.N_PER_LBF
@@ -226,15 +227,10 @@ def quantise(v, span, bits):
 
 
 def generate_form(sim, rig, t, load, form_id, params, writes=None):
-    """Closed loop with a form of the second family (truth2_simulate in
+    """Closed loop with a form of the second family (the engine's table TRUTH2 in
     libleveler_truth.so) from rest, as CPlant.generate runs the first family's."""
-    if getattr(sim, "truth2_fn", None) is None:
-        sim.truth2_lib = cplant._library(cplant.find_truth_library())
-        sim.truth2_fn = cplant._bind(sim.truth2_lib.truth2_simulate)
-    cplant._set_writes(sim.truth2_lib, writes)
-    kind, values = ([form_id], [params]) if form_id else ([], [])
-    return sim._call(rig, np.round(np.asarray(t, dtype=float), 2), load, None, kind, values,
-                     [np.nan] * 4 + [0.0], fn=sim.truth2_fn)
+    return sim.generate(rig, np.round(np.asarray(t, dtype=float), 2), load, int(form_id), params, 0, writes,
+                        catalogue=engine.TRUTH2)
 
 
 def write_truth_log(sim, path, rig, system, steps, end, effect, params, kind, rng, writes=None, form_id=None):

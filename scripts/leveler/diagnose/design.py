@@ -19,7 +19,9 @@ import numpy as np
 
 from leveler import paths
 
-from .cplant import request_commands, schedule_apply, schedule_columns, tick_grid
+from leveler.engine import schedule_apply, schedule_columns, tick_grid
+
+from .cplant import request_commands
 from .model import CLOSED_LOOP
 from .runs import Run
 
@@ -136,7 +138,7 @@ def candidate_schedules(base_n, accumulator=False):
 
 def schedule_loads(t, steps):
     """The load over each tick from t[i] of a schedule [(t_s, load_n, ...)], by the
-    simulator's own rule (stepper.h, asked through cplant.schedule_apply)."""
+    simulator's own rule (stepper.h, asked through engine.schedule_apply)."""
     return schedule_apply(t, steps)[0]
 
 

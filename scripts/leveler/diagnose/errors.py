@@ -1,6 +1,5 @@
-"""One exception type for every bad input, so the CLI prints it and exits 2."""
+"""The diagnosis's bad inputs: the package's one InputError (leveler.errors),
+so a config or schedule the engine refuses is reported as any other."""
+from leveler.errors import InputError as DiagnoseInputError
 
-
-class DiagnoseInputError(Exception):
-    """Bad input: the message names the file, line and field where possible."""
-
+__all__ = ["DiagnoseInputError"]

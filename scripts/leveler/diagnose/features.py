@@ -12,7 +12,7 @@ The file is JSON:
 Feature keys are leveler.events.SUMMARY_KEYS (SI; null = not published).
 "schedule" is optional (default: the config's [scenario], as the C loader
 resolves it) and "config" defaults to --config; the load over each 10 ms tick
-follows the simulator's own scenario rule (cplant.scenario_loads). Each run is simulated closed loop
+follows the simulator's own scenario rule (engine.scenario_loads). Each run is simulated closed loop
 with the firmware, its event figures extracted as for a trace, and the
 residual is the difference to the published figures in units of the
 figures' published resolution (FEATURE_SCALE).
@@ -24,7 +24,7 @@ import os
 import numpy as np
 
 from leveler import config as config_mod
-from leveler import events, thesis
+from leveler import engine, events, thesis
 
 from . import cplant, gap
 from .errors import DiagnoseInputError
@@ -44,8 +44,8 @@ class FeatureRun:
         self.config_override = config
         self.features = features
         end = schedule["end_s"]
-        self.t_s = cplant.tick_grid(end)
-        self.load_n = cplant.scenario_loads(self.t_s, schedule)
+        self.t_s = engine.tick_grid(end)
+        self.load_n = engine.scenario_loads(self.t_s, schedule)
         nan = np.full(len(self.t_s), np.nan)
         self.signals = {s: nan for s in ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")}
         self.commands = {}
@@ -73,7 +73,7 @@ def _scenario(config):
         values = config_mod.load(path).values["scenario"]
     except config_mod.ConfigError as e:
         raise DiagnoseInputError(str(e)) from None
-    return {k: float(values[k]) for k in cplant.SCENARIO_KEYS}
+    return {k: float(values[k]) for k in engine.SCENARIO_KEYS}
 
 
 def load_many(paths, default_config):
