@@ -34,19 +34,21 @@ from .cli import umask_mode
 
 FORMAT_VERSION = 3
 
-BASE_COLUMNS = ("t_s", "height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa", "load_n",
-                "compressor", "spring_valve", "vent_valve", "acc_valve")
+# THE signal tuples, in the order every layer keeps (the engine's sensed and
+# actuator columns, the log's, the diagnosis's traces): one definition, here
+SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
+ACTUATORS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
+PRESSURES = SIGNALS[1:]
+BASE_COLUMNS = ("t_s",) + SIGNALS + ("load_n",) + ACTUATORS
 # format 3: the firmware's state after the tick, and the plant's true state (simulated runs)
 STATE = ("mode", "control_state", "latched_fault_bits", "sensors_valid")
-TRUTH = ("true_height_m", "true_p_spring_pa", "true_p_pipe_pa", "true_p_acc_pa")
+TRUTH = tuple("true_" + s for s in SIGNALS)
 COLUMNS = BASE_COLUMNS + STATE + TRUTH
 # The header each format has; format 1 called the valves solenoid and vent.
 # Older formats read with the format 3 columns they lack empty (NaN).
 HEADERS = {1: BASE_COLUMNS[:7] + ("solenoid", "vent", "acc_valve"), 2: BASE_COLUMNS, 3: COLUMNS}
 SUPPORTED_VERSIONS = tuple(HEADERS)
 REQUIRED = ("t_s", "height_m", "load_n")          # never empty
-PRESSURES = ("p_spring_pa", "p_pipe_pa", "p_acc_pa")
-ACTUATORS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
 FLAGS = ACTUATORS + ("sensors_valid",)          # 0/1 cells
 INTEGERS = ("mode", "control_state", "latched_fault_bits")
 SOURCES = ("sim", "rig")

@@ -49,10 +49,9 @@ import numpy as np
 import leveler
 from leveler import cli as leveler_cli
 from leveler import config as leveler_config
-from leveler import engine, paths, thesis
+from leveler import engine, paths, runlog, thesis
 
 from . import blindtest_run
-from . import cplant
 from . import design
 from . import effects as fx
 from . import runs
@@ -250,7 +249,7 @@ def write_truth_log(sim, path, rig, system, steps, end, effect, params, kind, rn
     nh, npr = LOG_KINDS[kind][4:]
     sig = {"height_m": quantise(np.interp(ts, t, tr.signals["height_m"]) + rng.normal(0.0, nh, len(ts)),
                                 HEIGHT_SPAN_M, bits)}
-    for s in ("p_spring_pa", "p_pipe_pa", "p_acc_pa"):
+    for s in runlog.PRESSURES:
         v = np.interp(ts, t, tr.signals[s]) + rng.normal(0.0, npr, len(ts))
         sig[s] = quantise(v, PRESSURE_SPAN_PA, bits)
     if system != "accumulator":

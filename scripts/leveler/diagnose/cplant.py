@@ -11,14 +11,13 @@ import numpy as np
 from . import effects as fx
 from .errors import DiagnoseInputError
 from .model import CLOSED_LOOP, Simulator, Trace
-from .runs import SIGNALS
+from .runs import COMMANDS, SIGNALS
 from .start_state import chatter_track, initial_state
 
 from leveler import engine, paths
 
 # the names --config takes: the checkout's host_sim/configs, else the installed package's copy
 CONFIG_DIR = paths.data("host_sim/configs", "configs")
-COMMANDS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
 FINE_TICK_S = 0.01      # replay grid for coarse or jittered logs
 OMEGA_WINDOW_S = 3.0    # the motor speed is fitted to P1 over at most this long
 

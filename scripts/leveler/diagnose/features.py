@@ -26,7 +26,7 @@ import numpy as np
 from leveler import config as config_mod
 from leveler import engine, events, thesis
 
-from . import cplant, gap
+from . import cplant, gap, runs
 from .errors import DiagnoseInputError
 
 # One unit of error per figure: the resolution the thesis quotes them in.
@@ -47,7 +47,7 @@ class FeatureRun:
         self.t_s = engine.tick_grid(end)
         self.load_n = engine.scenario_loads(self.t_s, schedule)
         nan = np.full(len(self.t_s), np.nan)
-        self.signals = {s: nan for s in ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")}
+        self.signals = {s: nan for s in runs.SIGNALS}
         self.commands = {}
         self.has_commands = False
 

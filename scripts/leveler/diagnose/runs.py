@@ -14,8 +14,8 @@ from leveler import runlog
 
 from .errors import DiagnoseInputError
 
-COMMANDS = ("compressor", "spring_valve", "vent_valve", "acc_valve")
-SIGNALS = ("height_m", "p_spring_pa", "p_pipe_pa", "p_acc_pa")
+COMMANDS = runlog.ACTUATORS     # the trace's commands: the log's actuators
+SIGNALS = runlog.SIGNALS
 MIN_ROWS = 50
 
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import events
+from .. import events, runlog
 
 ENTRY_AFTER_S = 1.0          # ctlbench.c LOAD_MOTION_S
 CONTROL = ("overshoot_m", "switchings", "compressor_on_s", "vent_open_s", "outside_band_s",
@@ -80,7 +80,7 @@ def control_figures(log, band_lower_m, band_upper_m):
     off = _outside(np.asarray(h, dtype=float), band_lower_m, band_upper_m)
     tick = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
     on = {name: np.nan_to_num(getattr(log, name)) > 0
-          for name in ("compressor", "spring_valve", "vent_valve", "acc_valve")}
+          for name in runlog.ACTUATORS}
     bits = sum(on[name].astype(int) << i for i, name in enumerate(on))
     faults = log.latched_fault_bits[np.isfinite(log.latched_fault_bits)]
     return {
