@@ -1,18 +1,17 @@
 /*
- * Algorithm 3, the phase logic (alg3.h). Learning is in alg3_learn.c.
+ * Algorithm 3, the phase logic (alg3.h), on its estimates (alg3_estimate.c)
+ * and its learner (alg3_learn.c): it shows the learner what it is doing and
+ * acts on the learner's verdicts.
  *
  * Fixed point: heights um (int32), rates um/s (int32), pressures Pa absolute
  * (int32), times ms (uint32, differences only, so wrap-around is harmless).
- * The filter state is height * 16 (|height| <= 2^27 um keeps it in int32; the
- * sensor calibration limits heights to +-2e6 um). Products that can exceed
- * int32 (rate * coast, span * permille, excess * dt) are formed in int64 and
+ * Products that can exceed int32 (excess * dt) are formed in int64 and
  * saturated back.
  */
 #include "leveler/alg3.h"
 
 #include <string.h>
 
-#include "leveler/app.h"
 #include "leveler/fixed_point.h"
 
 void leveler_alg3_init(leveler_alg3 *a, uint32_t now_ms)
@@ -22,59 +21,6 @@ void leveler_alg3_init(leveler_alg3 *a, uint32_t now_ms)
     a->phase_start_ms = now_ms;
     a->last_ms = now_ms;
     leveler_dwell_init(&a->dwell, now_ms, UINT16_MAX);
-}
-
-int32_t leveler_alg3_target_um(const leveler_settings *set)
-{
-    int64_t span = (int64_t)set->band_upper_um - (int64_t)set->band_lower_um;
-    return leveler_sat_i32((int64_t)set->band_lower_um +
-                           leveler_div_round_i64(span * (int64_t)set->alg3_target_permille, 1000));
-}
-
-int32_t leveler_alg3_predict_um(int32_t height_um, int32_t rate_um_s, uint16_t coast_ms)
-{
-    return leveler_sat_i32((int64_t)height_um + leveler_div_round_i64((int64_t)rate_um_s * (int64_t)coast_ms, 1000));
-}
-
-int32_t leveler_alg3_prediction_rate(const leveler_alg3 *a)
-{
-    bool fast = a->rate_fast_um_s >= LEVELER_ALG3_FAST_UM_S || a->rate_fast_um_s <= -LEVELER_ALG3_FAST_UM_S;
-    return fast ? a->rate_fast_um_s : a->rate_um_s;
-}
-
-int32_t leveler_alg3_height_um(const leveler_alg3 *a)
-{
-    return (int32_t)leveler_div_round_i64(a->height_q, LEVELER_ALG3_Q);
-}
-
-void leveler_alg3_filter(leveler_alg3 *a, int32_t height_um)
-{
-    int64_t x_q = (int64_t)height_um * LEVELER_ALG3_Q;
-    if (!a->primed) {
-        a->primed = true;
-        a->height_q = leveler_sat_i32(x_q);
-        for (unsigned i = 0; i < LEVELER_ALG3_RATE_TICKS; i++) {
-            a->ring_um[i] = height_um;
-        }
-        a->ring_head = 0;
-        a->rate_um_s = 0;
-        a->rate_fast_um_s = 0;
-        return;
-    }
-    /* Truncating division: the state moves by (x - state)/4 rounded toward zero,
-     * at most 1/16 um short of the exact filter per tick (it cannot drift: a
-     * remaining difference of >= 4 LSB always moves it). */
-    a->height_q = leveler_sat_i32((int64_t)a->height_q + (x_q - (int64_t)a->height_q) / LEVELER_ALG3_FILTER_DIV);
-    int32_t h = leveler_alg3_height_um(a);
-    int32_t oldest = a->ring_um[a->ring_head]; /* LEVELER_ALG3_RATE_TICKS ticks ago */
-    int32_t recent = a->ring_um[(a->ring_head + LEVELER_ALG3_RATE_TICKS - LEVELER_ALG3_FAST_TICKS) %
-                                LEVELER_ALG3_RATE_TICKS];
-    a->ring_um[a->ring_head] = h;
-    a->ring_head = (uint8_t)((a->ring_head + 1u) % LEVELER_ALG3_RATE_TICKS);
-    a->rate_um_s = leveler_sat_i32(leveler_div_round_i64(((int64_t)h - (int64_t)oldest) * 1000,
-                                                         (int64_t)LEVELER_ALG3_RATE_TICKS * LEVELER_TICK_MS));
-    a->rate_fast_um_s = leveler_sat_i32(leveler_div_round_i64(((int64_t)h - (int64_t)recent) * 1000,
-                                                              (int64_t)LEVELER_ALG3_FAST_TICKS * LEVELER_TICK_MS));
 }
 
 /* A one-sided cumulative sum of the distance outside a band edge: it grows
@@ -116,8 +62,9 @@ static void track_departure(leveler_alg3 *a, const leveler_settings *set, int32_
 /* Rest height predicted from the rate and the learnt coast time of the move's direction. */
 static int32_t rate_prediction(const leveler_alg3 *a, const leveler_settings *set, int32_t h)
 {
-    uint16_t coast = a->rate_um_s >= 0 ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
-    return leveler_alg3_predict_um(h, a->rate_um_s, coast);
+    int32_t rate = a->filter.rate_um_s;
+    uint16_t coast = rate >= 0 ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
+    return leveler_alg3_predict_um(h, rate, coast);
 }
 
 /* Which side of the band a height is on: -1 below, +1 above, 0 inside. */
@@ -135,8 +82,9 @@ static int8_t side(const leveler_settings *set, int32_t h)
 static int8_t fast_departure(const leveler_alg3 *a, const leveler_settings *set, int32_t h)
 {
     int8_t rest_side = side(set, rate_prediction(a, set, h));
-    bool fast = a->rate_um_s >= LEVELER_ALG3_FAST_UM_S || a->rate_um_s <= -LEVELER_ALG3_FAST_UM_S;
-    return (fast && rest_side != 0 && (rest_side > 0) == (a->rate_um_s > 0)) ? rest_side : 0;
+    int32_t rate = a->filter.rate_um_s;
+    bool fast = rate >= LEVELER_ALG3_FAST_UM_S || rate <= -LEVELER_ALG3_FAST_UM_S;
+    return (fast && rest_side != 0 && (rest_side > 0) == (rate > 0)) ? rest_side : 0;
 }
 
 static int8_t departure(const leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms)
@@ -160,7 +108,8 @@ static void enter(leveler_alg3 *a, uint8_t phase, uint32_t now_ms)
 /* dir: -1 fill, +1 vent. off_um: how far outside the band (a fast move: far). */
 static void start_move(leveler_alg3 *a, int8_t dir, int64_t off_um, uint32_t now_ms)
 {
-    bool still = a->rate_um_s < LEVELER_ALG3_MOVING_UM_S && a->rate_um_s > -LEVELER_ALG3_MOVING_UM_S;
+    int32_t rate = a->filter.rate_um_s;
+    bool still = rate < LEVELER_ALG3_MOVING_UM_S && rate > -LEVELER_ALG3_MOVING_UM_S;
     bool fine = off_um < LEVELER_ALG3_FINE_UM && still;
     a->use_acc = off_um >= LEVELER_ALG3_ACC_MIN_UM || (a->retry && a->use_acc);
     a->burst_ms = !a->retry ? (uint16_t)LEVELER_ALG3_BURST_MS
@@ -172,14 +121,14 @@ static void start_move(leveler_alg3 *a, int8_t dir, int64_t off_um, uint32_t now
     a->fine = fine;
     a->bursting = false;
     enter(a, dir < 0 ? LEVELER_ALG3_FILLING : LEVELER_ALG3_VENTING, now_ms);
-    a->watch.line_fresh = false;
+    a->watch.lines.line_fresh = false;
     a->moves = leveler_sat_inc_u16(a->moves);
     a->probe = LEVELER_ALG3_PROBE_NONE;
 }
 
 bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, int32_t moved_um, uint32_t now_ms)
 {
-    if (a->phase != LEVELER_ALG3_IDLE || !a->primed) {
+    if (a->phase != LEVELER_ALG3_IDLE || !a->filter.primed) {
         return false;
     }
     a->retry = false;
@@ -187,7 +136,7 @@ bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, int32_t moved
     a->fine = false;
     a->use_acc = dir < 0; /* a fill: until half way up (moving()), then never again in this probe */
     a->probe = kind;
-    a->probe_from_um = leveler_alg3_height_um(a);
+    a->probe_from_um = leveler_alg3_height_um(&a->filter);
     a->probe_moved_um = moved_um < LEVELER_ALG3_PROBE_MOVED_MIN_UM   ? LEVELER_ALG3_PROBE_MOVED_MIN_UM
                         : moved_um > LEVELER_ALG3_PROBE_MOVED_MAX_UM ? LEVELER_ALG3_PROBE_MOVED_MAX_UM
                                                                      : moved_um;
@@ -205,41 +154,6 @@ static void idle(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32
         int64_t off = dir < 0 ? (int64_t)set->band_lower_um - h : (int64_t)h - set->band_upper_um;
         start_move(a, dir, fast ? INT32_MAX : off, now_ms);
     }
-}
-
-/* Rest height if the valves closed now, from the pressure: the excess over the
- * up line (or under the down line) carries the platform alg3_coast_k_up/down
- * Pa per mm. line_pa 0 (unknown) or no excess: h. */
-static int32_t line_prediction(const leveler_settings *set, bool up, int32_t h, int32_t p_spring_pa, int32_t line_pa)
-{
-    int64_t excess = up ? (int64_t)p_spring_pa - line_pa : (int64_t)line_pa - p_spring_pa;
-    if (line_pa == 0 || excess <= 0) {
-        return h;
-    }
-    int32_t k = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
-    int64_t travel_um = leveler_div_round_i64(excess * 1000, k);
-    return leveler_sat_i32(up ? (int64_t)h + travel_um : (int64_t)h - travel_um);
-}
-
-/* A prediction with its travel stretched by EARLY_NUM/EARLY_DEN (an estimate's hedge). */
-static int64_t stretched(int32_t h, int32_t pred)
-{
-    return (int64_t)h + ((int64_t)pred - h) * LEVELER_ALG3_EARLY_NUM / LEVELER_ALG3_EARLY_DEN;
-}
-
-bool leveler_alg3_close_now(const leveler_settings *set, bool up, int32_t h, int32_t rate_um_s, int32_t p_spring_pa,
-                            int32_t line_pa, bool line_sure)
-{
-    int32_t target = leveler_alg3_target_um(set);
-    int32_t along = up ? rate_um_s : -rate_um_s;
-    uint16_t coast = up ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
-    int64_t by_rate = along > LEVELER_ALG3_STILL_UM_S ? stretched(h, leveler_alg3_predict_um(h, rate_um_s, coast)) : h;
-    int32_t line_rest = line_prediction(set, up, h, p_spring_pa, line_pa);
-    int64_t by_line = line_sure ? (int64_t)line_rest : stretched(h, line_rest);
-    if (up) {
-        return h >= target || h > set->band_upper_um || by_rate >= target || by_line >= target;
-    }
-    return h <= target || h < set->band_lower_um || by_rate <= target || by_line <= target;
 }
 
 /* A fine move: with the line known, P2 goes on towards it in one go while it
@@ -263,8 +177,7 @@ static bool burst_done(leveler_alg3 *a, bool up, int32_t p_spring_pa, int32_t li
 /* How far the platform moved the probe's way since it started (um). */
 int32_t leveler_alg3_probe_moved_um(const leveler_alg3 *a, bool up)
 {
-    int32_t h = leveler_alg3_height_um(a);
-    return leveler_sat_i32(up ? (int64_t)h - a->probe_from_um : (int64_t)a->probe_from_um - h);
+    return leveler_alg3_moved_um(&a->filter, a->probe_from_um, up);
 }
 
 /* A probe's end: the break-away seen (the learner registered a motion the probe's way), or (an early
@@ -281,22 +194,53 @@ static bool probe_done(const leveler_alg3 *a, bool up)
 static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int32_t p_spring_pa, uint32_t now_ms)
 {
     bool up = a->phase == LEVELER_ALG3_FILLING;
-    int32_t line = leveler_alg3_line_estimate(a, set, up, h);
+    int32_t line = leveler_alg3_line_estimate(&a->watch.lines, set, up, h);
     bool burst = burst_done(a, up, p_spring_pa, line, now_ms);
     /* the line broke away from in this move is the present load's: its coast needs no stretch */
-    bool sure = a->watch.line_fresh;
-    bool done = a->probe != LEVELER_ALG3_PROBE_NONE
-                    ? probe_done(a, up)
-                    : leveler_alg3_close_now(set, up, h, leveler_alg3_prediction_rate(a), p_spring_pa, line, sure);
+    bool sure = a->watch.lines.line_fresh;
+    bool done = a->probe != LEVELER_ALG3_PROBE_NONE ? probe_done(a, up)
+                                                    : leveler_alg3_close_now(set, up, h,
+                                                                             leveler_alg3_prediction_rate(&a->filter),
+                                                                             p_spring_pa, line, sure);
     if (a->probe != LEVELER_ALG3_PROBE_NONE && up) {
         /* a probe crossing the gap draws on the accumulator for its first half (an estimated line: the
          * other line's stop plus the gap), then breaks away on the compressor alone: a small excess */
         a->use_acc = a->use_acc && line != 0 && (int64_t)p_spring_pa < (int64_t)line - set->alg3_gap_pa / 2;
     }
     if (done || burst) {
-        leveler_alg3_note_close(a, up ? 1 : -1, p_spring_pa, line);
+        leveler_alg3_note_close(&a->watch, &a->filter, up ? 1 : -1, p_spring_pa, line);
         enter(a, LEVELER_ALG3_SETTLING, now_ms);
     }
+}
+
+/* What the learner is shown of the controller's state. */
+static leveler_alg3_view learner_view(const leveler_alg3 *a)
+{
+    leveler_alg3_view v;
+    v.filter = &a->filter;
+    v.valves_dir = a->phase == LEVELER_ALG3_FILLING ? 1 : a->phase == LEVELER_ALG3_VENTING ? -1 : 0;
+    v.settling = a->phase == LEVELER_ALG3_SETTLING;
+    v.commissioning = a->commissioning;
+    v.probe = a->probe != LEVELER_ALG3_PROBE_NONE;
+    v.probe_from_um = a->probe_from_um;
+    v.probe_moved_um = a->probe_moved_um;
+    return v;
+}
+
+/* The coast learnt from the close just settled; the verdict acted on. */
+static void learn_coast(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt, bool *changed)
+{
+    leveler_alg3_view view = learner_view(a);
+    if (leveler_alg3_learn_coast(&a->watch, &view, set, learnt, changed) == LEVELER_ALG3_VERDICT_RETRY) {
+        a->retry = true; /* fill or vent on as it was, in a longer burst */
+    }
+}
+
+void leveler_alg3_probe_learn(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,
+                              bool *changed)
+{
+    learn_coast(a, set, learnt, changed);
+    leveler_alg3_forget_close(&a->watch);
 }
 
 /* Valves closed until the platform is at rest (or alg3_settle_ms); then the
@@ -307,8 +251,7 @@ static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t h, ui
 {
     int8_t fast = fast_departure(a, set, h);
     if (fast != 0 && fast == -a->watch.close_dir) {
-        a->watch.close_valid = false;
-        a->watch.close_dir = 0;
+        leveler_alg3_forget_close(&a->watch);
         start_move(a, fast, INT32_MAX, now_ms);
         return;
     }
@@ -322,10 +265,9 @@ static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t h, ui
             return;
         }
         if (at_rest) {
-            leveler_alg3_learn_coast(a, set, learnt, changed);
+            learn_coast(a, set, learnt, changed);
         }
-        a->watch.close_valid = false;
-        a->watch.close_dir = 0;
+        leveler_alg3_forget_close(&a->watch);
         enter(a, LEVELER_ALG3_IDLE, now_ms);
     }
 }
@@ -378,14 +320,14 @@ leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings 
     uint32_t dt_ms = now_ms - a->last_ms;
     a->last_ms = now_ms;
     if (held) { /* safe state or not in auto: start again from idle with a fresh filter */
-        a->primed = false;
+        a->filter.primed = false;
         a->recharging = false;
         enter(a, LEVELER_ALG3_IDLE, now_ms);
         memset(out, 0, sizeof(*out));
         return LEVELER_STATE_IN_BAND;
     }
-    leveler_alg3_filter(a, height_um);
-    int32_t h = leveler_alg3_height_um(a);
+    leveler_alg3_filter(&a->filter, height_um);
+    int32_t h = leveler_alg3_height_um(&a->filter);
     track_departure(a, set, h, now_ms, dt_ms);
     if (a->phase == LEVELER_ALG3_IDLE) {
         idle(a, set, h, now_ms);
@@ -396,7 +338,8 @@ leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings 
     }
     phase_outputs(a, set, p_spring_pa, p_acc_pa, out);
     leveler_dwell_apply(&a->dwell, set->alg3_min_on_ms, set->alg3_min_off_ms, now_ms, out);
-    leveler_alg3_learn(a, set, p_spring_pa, dt_ms, learnt, learnt_changed);
+    leveler_alg3_view view = learner_view(a);
+    leveler_alg3_learn(&a->watch, &view, set, p_spring_pa, dt_ms, learnt, learnt_changed);
     return band_state(a->phase);
 }
 

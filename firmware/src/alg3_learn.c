@@ -1,16 +1,16 @@
 /*
- * Algorithm 3, learning from the rig's own motion (alg3.h): the coast time
- * constants that the early close predicts with, and the hysteresis lines
+ * Algorithm 3, learning from the rig's own motion (alg3_learn.h): the coast
+ * time constants that the early close predicts with, and the hysteresis lines
  * (break-away pressure up, hold pressure down) referred to the target height.
- * Learnt values go into a copy of the settings (the caller applies it, so it
- * is validated like any register write and reaches flash on the board).
+ * It reads the estimates below it and what the controller shows it (the
+ * view); it writes only its own watch and the learnt settings.
  *
  * Fixed point: a line point P2 + slope * (target - h) with slope in Pa/mm and
  * heights in um: |target - h| <= 50800 um and |slope| <= 20000 Pa/mm give
  * at most 1.02e6 Pa of shift, formed in int64. Coast: travel um * 1000 / rate
  * um/s in int64, clamped to the uint16 range of the setting.
  */
-#include "leveler/alg3.h"
+#include "leveler/alg3_learn.h"
 
 #include "leveler/fixed_point.h"
 
@@ -22,17 +22,24 @@ static void begin(const leveler_settings *set, leveler_settings *learnt, bool *c
     }
 }
 
-void leveler_alg3_note_close(leveler_alg3 *a, int8_t dir, int32_t p_spring_pa, int32_t line_pa)
+void leveler_alg3_note_close(leveler_alg3_watch *w, const leveler_alg3_height_filter *f, int8_t dir,
+                             int32_t p_spring_pa, int32_t line_pa)
 {
-    int32_t rate = leveler_alg3_prediction_rate(a);
+    int32_t rate = leveler_alg3_prediction_rate(f);
     int32_t along = dir > 0 ? rate : -rate;
-    a->watch.close_valid = along >= LEVELER_ALG3_COAST_MIN_RATE_UM_S;
-    a->watch.close_dir = dir;
-    a->watch.close_height_um = leveler_alg3_height_um(a);
-    a->watch.close_rate_um_s = rate;
-    a->watch.close_p_spring_pa = p_spring_pa;
-    a->watch.close_line_pa = line_pa;
-    a->watch.still_ms = 0; /* the settle waits for rest seen after the close, not before the move */
+    w->close_valid = along >= LEVELER_ALG3_COAST_MIN_RATE_UM_S;
+    w->close_dir = dir;
+    w->close_height_um = leveler_alg3_height_um(f);
+    w->close_rate_um_s = rate;
+    w->close_p_spring_pa = p_spring_pa;
+    w->close_line_pa = line_pa;
+    w->still_ms = 0; /* the settle waits for rest seen after the close, not before the move */
+}
+
+void leveler_alg3_forget_close(leveler_alg3_watch *w)
+{
+    w->close_valid = false;
+    w->close_dir = 0;
 }
 
 /* Halfway from old towards seen, clamped to [lo, hi]; seen outside is ignored (returns old). */
@@ -88,57 +95,60 @@ static int32_t coast_k_seen(leveler_alg3_watch *w, bool up, int64_t travel_um, i
     return learnt_value(w, bit, old, seen, LEVELER_ALG3_K_MIN_PA_PER_MM, LEVELER_ALG3_K_MAX_PA_PER_MM);
 }
 
-static void learn_gap(leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_break_pa,
-                      leveler_settings *learnt, bool *changed);
-static bool line_point(leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_spring_pa,
-                       leveler_settings *learnt, bool *changed);
+static void learn_gap(leveler_alg3_watch *w, const leveler_alg3_height_filter *f, const leveler_settings *set,
+                      int8_t dir, int32_t p_break_pa, leveler_settings *learnt, bool *changed);
+static bool line_point(leveler_alg3_watch *w, const leveler_alg3_height_filter *f, const leveler_settings *set,
+                       int8_t dir, int32_t p_spring_pa, leveler_settings *learnt, bool *changed);
 
 /* An early probe's platform that broke away (moved its threshold) and came to rest without the rate
  * window seeing a motion: it stopped where P2 is back on the line of its motion. That point teaches
  * the line, the gap from where the last motion stopped, and is where this motion stopped. */
-static void probe_stop(leveler_alg3 *a, const leveler_settings *set, bool up, leveler_settings *learnt,
-                       bool *changed)
+static void probe_stop(leveler_alg3_watch *w, const leveler_alg3_view *v, const leveler_settings *set, bool up,
+                       leveler_settings *learnt, bool *changed)
 {
-    leveler_alg3_watch *w = &a->watch;
-    if (leveler_alg3_probe_moved_um(a, up) < a->probe_moved_um) {
+    const leveler_alg3_height_filter *f = v->filter;
+    if (leveler_alg3_moved_um(f, v->probe_from_um, up) < v->probe_moved_um) {
         return;
     }
-    unsigned newest = (a->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
+    unsigned newest = (f->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
     int32_t p = w->p_spring_ring_pa[newest];
     int8_t dir = up ? 1 : -1;
-    learn_gap(a, set, dir, p, learnt, changed);
-    w->line_fresh = line_point(a, set, dir, p, learnt, changed);
-    w->end_valid = true;
-    w->end_trusted = true;
-    w->end_dir = dir;
-    w->end_height_um = leveler_alg3_height_um(a);
-    w->end_p_spring_pa = p;
+    learn_gap(w, f, set, dir, p, learnt, changed);
+    w->lines.line_fresh = line_point(w, f, set, dir, p, learnt, changed);
+    w->lines.end_valid = true;
+    w->lines.end_trusted = true;
+    w->lines.end_dir = dir;
+    w->lines.end_height_um = leveler_alg3_height_um(f);
+    w->lines.end_p_spring_pa = p;
 }
 
-void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,
-                              bool *changed)
+/* Closed on an estimate and nothing moved: the line lies beyond it (a probe: commissioning judges its own). */
+static leveler_alg3_verdict judge_close(leveler_alg3_watch *w, const leveler_alg3_view *v, int64_t travel_um)
 {
-    leveler_alg3_watch *w = &a->watch;
-    int64_t travel_um = (int64_t)leveler_alg3_height_um(a) - w->close_height_um;
     int64_t along_um = w->close_dir < 0 ? -travel_um : travel_um;
-    bool probe = a->probe != LEVELER_ALG3_PROBE_NONE; /* commissioning judges its own probes */
-    if (!probe && w->close_dir != 0 && along_um < LEVELER_ALG3_MOVED_UM && !w->line_fresh) {
-        /* closed on an estimate and nothing moved: the line lies beyond it;
-         * fill or vent on until the platform breaks away */
-        w->end_trusted = false; /* still the gap's reference point when the platform breaks away */
-        w->lines_valid = false;
-        a->retry = true;
+    if (v->probe || w->close_dir == 0 || along_um >= LEVELER_ALG3_MOVED_UM || w->lines.line_fresh) {
+        return LEVELER_ALG3_VERDICT_NONE;
     }
+    w->lines.end_trusted = false; /* still the gap's reference point when the platform breaks away */
+    w->lines.lines_valid = false;
+    return LEVELER_ALG3_VERDICT_RETRY;
+}
+
+leveler_alg3_verdict leveler_alg3_learn_coast(leveler_alg3_watch *w, const leveler_alg3_view *v,
+                                              const leveler_settings *set, leveler_settings *learnt, bool *changed)
+{
+    int64_t travel_um = (int64_t)leveler_alg3_height_um(v->filter) - w->close_height_um;
+    leveler_alg3_verdict verdict = judge_close(w, v, travel_um);
     if (set->alg3_learn == 0u || w->close_dir == 0) {
-        return;
+        return verdict;
     }
     bool up = w->close_dir > 0;
-    if (probe && !w->line_fresh) {
-        probe_stop(a, set, up, learnt, changed);
+    if (v->probe && !w->lines.line_fresh) {
+        probe_stop(w, v, set, up, learnt, changed);
     }
-    if (probe && w->line_fresh) {
+    if (v->probe && w->lines.line_fresh) {
         /* a probe closed before its break-away was seen: the excess counts from the line learnt since */
-        w->close_line_pa = leveler_alg3_line_estimate(a, *changed ? learnt : set, up, w->close_height_um);
+        w->close_line_pa = leveler_alg3_line_estimate(&w->lines, *changed ? learnt : set, up, w->close_height_um);
     }
     int32_t old_tau = up ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
     int32_t old_k = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
@@ -146,7 +156,7 @@ void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leve
     int32_t new_k = coast_k_seen(w, up, travel_um, old_k);
     w->close_dir = 0;
     if (new_tau == old_tau && new_k == old_k) {
-        return;
+        return verdict;
     }
     begin(set, learnt, changed);
     if (up) {
@@ -156,30 +166,23 @@ void leveler_alg3_learn_coast(leveler_alg3 *a, const leveler_settings *set, leve
         learnt->alg3_coast_down_ms = (uint16_t)new_tau;
         learnt->alg3_coast_k_down_pa_per_mm = new_k;
     }
-}
-
-void leveler_alg3_probe_learn(leveler_alg3 *a, const leveler_settings *set, leveler_settings *learnt,
-                              bool *changed)
-{
-    leveler_alg3_learn_coast(a, set, learnt, changed);
-    a->watch.close_valid = false;
-    a->watch.close_dir = 0;
+    return verdict;
 }
 
 /* P2 where the present motion began or ended: the rate (a difference over the
  * window, on a filtered height) crosses its threshold about a window after
  * the platform starts or stops, while a fill may push P2 on at several psi/s;
  * so the oldest P2 of the window is taken. */
-static int32_t p_spring_at_start(const leveler_alg3 *a)
+static int32_t p_spring_at_start(const leveler_alg3_watch *w, const leveler_alg3_height_filter *f)
 {
-    return a->watch.p_spring_ring_pa[a->ring_head]; /* the slot the next tick overwrites */
+    return w->p_spring_ring_pa[f->ring_head]; /* the slot the next tick overwrites */
 }
 
 /* A point (h, P2) on the up (dir > 0) or down line, referred to the target. */
-static bool line_point(leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_spring_pa,
-                       leveler_settings *learnt, bool *changed)
+static bool line_point(leveler_alg3_watch *w, const leveler_alg3_height_filter *f, const leveler_settings *set,
+                       int8_t dir, int32_t p_spring_pa, leveler_settings *learnt, bool *changed)
 {
-    int32_t h = leveler_alg3_height_um(a);
+    int32_t h = leveler_alg3_height_um(f);
     int64_t dh = (int64_t)leveler_alg3_target_um(set) - h;
     if (dh > LEVELER_ALG3_LINE_REACH_UM || dh < -LEVELER_ALG3_LINE_REACH_UM) {
         return false;
@@ -189,8 +192,8 @@ static bool line_point(leveler_alg3 *a, const leveler_settings *set, int8_t dir,
         return false;
     }
     begin(set, learnt, changed);
-    bool same_load = a->watch.lines_valid;
-    a->watch.lines_valid = true;
+    bool same_load = w->lines.lines_valid;
+    w->lines.lines_valid = true;
     if (dir > 0) {
         learnt->alg3_up_pa = (int32_t)p;
         if (!same_load || learnt->alg3_down_pa >= learnt->alg3_up_pa) {
@@ -205,41 +208,17 @@ static bool line_point(leveler_alg3 *a, const leveler_settings *set, int8_t dir,
     return true;
 }
 
-static int32_t along_slope(const leveler_settings *set, int32_t p_pa, int32_t from_um, int32_t to_um)
-{
-    int64_t dh = (int64_t)to_um - from_um;
-    return leveler_sat_i32((int64_t)p_pa + leveler_div_round_i64(dh * set->alg3_line_slope_pa_per_mm, 1000));
-}
-
-int32_t leveler_alg3_line_estimate(const leveler_alg3 *a, const leveler_settings *set, bool up, int32_t h)
-{
-    const leveler_alg3_watch *w = &a->watch;
-    if (w->line_fresh || w->lines_valid) {
-        int32_t at_target = up ? set->alg3_up_pa : set->alg3_down_pa;
-        if (at_target != 0) {
-            return along_slope(set, at_target, leveler_alg3_target_um(set), h);
-        }
-    }
-    if (!w->end_valid || !w->end_trusted) {
-        return 0;
-    }
-    int32_t p = along_slope(set, w->end_p_spring_pa, w->end_height_um, h);
-    if ((w->end_dir > 0) == up) {
-        return p;
-    }
-    return leveler_sat_i32((int64_t)p + (up ? set->alg3_gap_pa : -set->alg3_gap_pa));
-}
-
 /* The gap seen between where the last motion stopped on the other line and
  * this break-away (both of the present load), halfway into alg3_gap_pa. */
-static void learn_gap(leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t p_break_pa,
-                      leveler_settings *learnt, bool *changed)
+static void learn_gap(leveler_alg3_watch *w, const leveler_alg3_height_filter *f, const leveler_settings *set,
+                      int8_t dir, int32_t p_break_pa, leveler_settings *learnt, bool *changed)
 {
-    leveler_alg3_watch *w = &a->watch;
-    if (!w->end_valid || w->end_dir == dir) {
+    const leveler_alg3_lines *lines = &w->lines;
+    if (!lines->end_valid || lines->end_dir == dir) {
         return;
     }
-    int32_t other = along_slope(set, w->end_p_spring_pa, w->end_height_um, leveler_alg3_height_um(a));
+    int32_t other = leveler_alg3_along_slope_pa(set, lines->end_p_spring_pa, lines->end_height_um,
+                                                leveler_alg3_height_um(f));
     int64_t gap = dir > 0 ? (int64_t)p_break_pa - other : (int64_t)other - p_break_pa;
     int32_t old = *changed ? learnt->alg3_gap_pa : set->alg3_gap_pa;
     int32_t next = learnt_value(w, LEVELER_ALG3_ADOPT_GAP, old, gap, LEVELER_ALG3_GAP_MIN_PA, LEVELER_ALG3_GAP_MAX_PA);
@@ -249,47 +228,47 @@ static void learn_gap(leveler_alg3 *a, const leveler_settings *set, int8_t dir, 
     }
 }
 
-void leveler_alg3_learn(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa, uint32_t dt_ms,
-                        leveler_settings *learnt, bool *changed)
+void leveler_alg3_learn(leveler_alg3_watch *w, const leveler_alg3_view *v, const leveler_settings *set,
+                        int32_t p_spring_pa, uint32_t dt_ms, leveler_settings *learnt, bool *changed)
 {
-    leveler_alg3_watch *w = &a->watch;
-    unsigned newest = (a->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
+    const leveler_alg3_height_filter *f = v->filter;
+    unsigned newest = (f->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
     w->p_spring_ring_pa[newest] = p_spring_pa;
-    int32_t rate = a->rate_um_s;
+    int32_t rate = f->rate_um_s;
     bool still = rate < LEVELER_ALG3_STILL_UM_S && rate > -LEVELER_ALG3_STILL_UM_S;
     w->still_ms = still ? leveler_sat_add_u32(w->still_ms, dt_ms) : 0u;
     bool learn = set->alg3_learn != 0u;
     if (rate > LEVELER_ALG3_MOVING_UM_S || rate < -LEVELER_ALG3_MOVING_UM_S) {
         int8_t dir = rate > 0 ? 1 : -1;
-        if (a->phase == LEVELER_ALG3_IDLE && !a->commissioning) {
-            w->lines_valid = false; /* nobody asked for this motion: the load has changed */
+        bool idle = v->valves_dir == 0 && !v->settling;
+        if (idle && !v->commissioning) {
+            w->lines.lines_valid = false; /* nobody asked for this motion: the load has changed */
         }
         /* a probe closes on the first millimetre, before the rate window sees the motion: its settle's */
-        bool probed = a->probe != LEVELER_ALG3_PROBE_NONE && a->phase == LEVELER_ALG3_SETTLING && w->close_dir == dir;
-        bool breaks_away = w->motion == 0 && ((dir > 0 && a->phase == LEVELER_ALG3_FILLING) ||
-                                              (dir < 0 && a->phase == LEVELER_ALG3_VENTING) || probed);
+        bool probed = v->probe && v->settling && w->close_dir == dir;
+        bool breaks_away = w->motion == 0 && (v->valves_dir == dir || probed);
         if (learn && breaks_away) {
-            int32_t p_break = p_spring_at_start(a);
-            learn_gap(a, set, dir, p_break, learnt, changed);
-            a->watch.line_fresh = line_point(a, set, dir, p_break, learnt, changed);
+            int32_t p_break = p_spring_at_start(w, f);
+            learn_gap(w, f, set, dir, p_break, learnt, changed);
+            w->lines.line_fresh = line_point(w, f, set, dir, p_break, learnt, changed);
         }
         w->motion = dir;
         w->ended = false;
     } else if (w->motion != 0 && still && !w->ended) {
         /* the motion has just ended: P2 where it ended lies on its line */
         w->ended = true;
-        w->end_valid = true;
-        w->end_trusted = true;
-        w->end_dir = w->motion;
-        w->end_height_um = leveler_alg3_height_um(a);
-        w->end_p_spring_pa = p_spring_at_start(a);
+        w->lines.end_valid = true;
+        w->lines.end_trusted = true;
+        w->lines.end_dir = w->motion;
+        w->lines.end_height_um = leveler_alg3_height_um(f);
+        w->lines.end_p_spring_pa = p_spring_at_start(w, f);
     } else if (w->motion != 0 && w->still_ms >= LEVELER_ALG3_REST_MS) {
-        bool sealed = a->phase == LEVELER_ALG3_IDLE || a->phase == LEVELER_ALG3_SETTLING;
+        bool sealed = v->valves_dir == 0; /* idle or settling */
         /* a platform that coasted from a fast close came to rest past its line,
          * carried by its momentum between the lines: not a point of the line */
-        bool coasted = a->phase == LEVELER_ALG3_SETTLING && w->close_valid;
+        bool coasted = v->settling && w->close_valid;
         if (learn && sealed && !coasted) {
-            line_point(a, set, w->motion, p_spring_pa, learnt, changed);
+            line_point(w, f, set, w->motion, p_spring_pa, learnt, changed);
         }
         w->motion = 0;
     }

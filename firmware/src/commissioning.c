@@ -50,7 +50,7 @@ static void start(leveler_commission *c, leveler_alg3 *a, const leveler_settings
     next.alg3_up_pa = 0;
     next.alg3_down_pa = 0;
     (void)leveler_settings_apply(&next);
-    a->watch.lines_valid = false;
+    a->watch.lines.lines_valid = false;
     a->watch.adopt = LEVELER_ALG3_ADOPT_ALL;
     a->hold = true;
     a->commissioning = true;
@@ -64,8 +64,8 @@ static void start(leveler_commission *c, leveler_alg3 *a, const leveler_settings
  * may start, or the end be judged. */
 static bool quiet(leveler_commission *c, const leveler_alg3 *a, uint32_t now_ms)
 {
-    int32_t h = leveler_alg3_height_um(a);
-    bool still = a->primed && a->phase == LEVELER_ALG3_IDLE;
+    int32_t h = leveler_alg3_height_um(&a->filter);
+    bool still = a->filter.primed && a->phase == LEVELER_ALG3_IDLE;
     int64_t crept = (int64_t)h - c->rest_um;
     if (!still || crept > LEVELER_COMMISSION_CREEP_UM || crept < -LEVELER_COMMISSION_CREEP_UM) {
         c->rest_um = h;
@@ -92,7 +92,7 @@ static void probe(leveler_commission *c, leveler_alg3 *a, bool up, uint8_t kind,
  * it out within CREEP_PROJECT windows. */
 static bool stays_in_band(const leveler_commission *c, const leveler_alg3 *a, const leveler_settings *set)
 {
-    int32_t h = leveler_alg3_height_um(a);
+    int32_t h = leveler_alg3_height_um(&a->filter);
     int64_t ahead = (int64_t)h + ((int64_t)h - c->rest_um) * LEVELER_COMMISSION_CREEP_PROJECT;
     return a->out_dir == 0 && h >= set->band_lower_um && h <= set->band_upper_um && ahead >= set->band_lower_um &&
            ahead <= set->band_upper_um;
@@ -122,12 +122,12 @@ static void advance(leveler_commission *c, leveler_alg3 *a, const leveler_settin
     }
     if (c->step == LEVELER_COMMISSION_REST) {
         probe(c, a, false, LEVELER_ALG3_PROBE_EARLY, now_ms);
-    } else if (c->step == LEVELER_COMMISSION_PROBE_DOWN && !a->watch.line_fresh) {
+    } else if (c->step == LEVELER_COMMISSION_PROBE_DOWN && !a->watch.lines.line_fresh) {
         probe(c, a, false, LEVELER_ALG3_PROBE_BREAK, now_ms);
     } else if (c->step == LEVELER_COMMISSION_PROBE_DOWN) {
         c->down_pa = set->alg3_down_pa;
         probe(c, a, true, LEVELER_ALG3_PROBE_EARLY, now_ms);
-    } else if (c->step == LEVELER_COMMISSION_PROBE_UP && !a->watch.line_fresh) {
+    } else if (c->step == LEVELER_COMMISSION_PROBE_UP && !a->watch.lines.line_fresh) {
         probe(c, a, true, LEVELER_ALG3_PROBE_BREAK, now_ms);
     } else if (c->step == LEVELER_COMMISSION_PROBE_UP) {
         c->up_pa = set->alg3_up_pa;

@@ -93,7 +93,7 @@ static void valve_rhs(const plant_fx *f, const double *q, const double *x, doubl
     const plant *pl = &f->pl;
     const plant_params *p = &pl->p;
     const double *xu = x + PLANT_NX + PLANT_FX_XE_VALVE;
-    const double p1 = x[PLANT_X_P1], p2 = x[PLANT_X_P2], pa = p->ambient_pa;
+    const double p1 = x[PLANT_X_P_PIPE], p2 = x[PLANT_X_P_SPRING], pa = p->ambient_pa;
     for (int i = 0; i < 2; i++) {
         double target = f->cmd[i] ? 1.0 : 0.0;
         dx[PLANT_NX + PLANT_FX_XE_VALVE + i] = (target - xu[i]) / (target > xu[i] ? q[0] : q[1]);
@@ -121,11 +121,11 @@ static void line_init(plant_fx *f, const double *q)
 static void line_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
 {
     const plant *pl = &f->pl;
-    double m_line = q[1] * (x[PLANT_NX + PLANT_FX_XE_AUX] - x[PLANT_X_P1]);
+    double m_line = q[1] * (x[PLANT_NX + PLANT_FX_XE_AUX] - x[PLANT_X_P_PIPE]);
     double v1 = pl->p.pipe_volume_m3;
     dx[PLANT_NX + PLANT_FX_XE_AUX] = pl->zn * pl->rt * (fl->compressor - m_line) / (q[0] + q[2] * v1);
     plant_fx_replace_flows(pl, x, dx, fl, m_line, fl->spring_valve, fl->vent_valve);
-    dx[PLANT_X_P1] /= 1.0 - q[2];
+    dx[PLANT_X_P_PIPE] /= 1.0 - q[2];
 }
 const plant_fx_ops truth_line_delay_ops = {.stage = PLANT_FX_STAGE_VOLUME, .uses = PLANT_FX_USES_AUX, .init = line_init,
                                            .rhs = line_rhs};
@@ -135,9 +135,9 @@ static void leak_rhs(const plant_fx *f, const double *q, const double *x, double
 {
     (void)fl;
     const plant *pl = &f->pl;
-    double p2 = x[PLANT_X_P2], pa = pl->p.ambient_pa;
+    double p2 = x[PLANT_X_P_SPRING], pa = pl->p.ambient_pa;
     double m_leak = p2 > pa ? q[0] * (p2 * p2 - pa * pa) : 0.0;
-    dx[PLANT_X_P2] -= pl->zn * pl->rt * m_leak / x[PLANT_X_V2];
+    dx[PLANT_X_P_SPRING] -= pl->zn * pl->rt * m_leak / x[PLANT_X_V2];
 }
 const plant_fx_ops truth_leak_ops = {.stage = PLANT_FX_STAGE_FLOW, .rhs = leak_rhs};
 

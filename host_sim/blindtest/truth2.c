@@ -56,12 +56,12 @@ static void spring_energy(const plant_fx *f, const double *x, double *dx, double
                           double q_term)
 {
     const plant_params *p = &f->pl.p;
-    double p2 = x[PLANT_X_P2], v2 = x[PLANT_X_V2], t2 = x[PLANT_NX + PLANT_FX_XE_T2];
+    double p2 = x[PLANT_X_P_SPRING], v2 = x[PLANT_X_V2], t2 = x[PLANT_NX + PLANT_FX_XE_T2];
     double z = p->compressibility, k = p->heat_ratio_k, r = p->gas_constant_j_per_kg_k;
     double dv2 = dx[PLANT_X_V2];
     double t_src = m_s > 0.0 ? t_in : t2;
     double d_p2 = z * k * (r * t_src * m_s - p2 * dv2) / v2 + q_term;
-    dx[PLANT_X_P2] = d_p2;
+    dx[PLANT_X_P_SPRING] = d_p2;
     dx[PLANT_NX + PLANT_FX_XE_T2] = t2 * (d_p2 / p2 + dv2 / v2 - z * r * t2 * m_s / (p2 * v2));
 }
 
@@ -71,7 +71,7 @@ static void wall_rhs(const plant_fx *f, const double *q, const double *x, double
 {
     double t2 = x[PLANT_NX + PLANT_FX_XE_T2], tw = x[PLANT_NX + PLANT_FX_XE_TW];
     double ta = f->pl.p.temperature_k;
-    spring_energy(f, x, dx, fl->spring_valve, ta, x[PLANT_X_P2] * (tw - t2) / (t2 * q[0]));
+    spring_energy(f, x, dx, fl->spring_valve, ta, x[PLANT_X_P_SPRING] * (tw - t2) / (t2 * q[0]));
     dx[PLANT_NX + PLANT_FX_XE_TW] = (t2 - tw) / (q[0] * q[1]) + (ta - tw) / q[2];
 }
 
@@ -92,11 +92,11 @@ const plant_fx_ops truth2_thermal_wall_ops = {
 static void hot_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
 {
     const plant_params *p = &f->pl.p;
-    double ratio = fmax(x[PLANT_X_P1] / p->ambient_pa, 1.0);
+    double ratio = fmax(x[PLANT_X_P_PIPE] / p->ambient_pa, 1.0);
     double t_dis = p->temperature_k * pow(ratio, (q[0] - 1.0) / q[0]);
     double t_in = p->temperature_k + (1.0 - q[1]) * (t_dis - p->temperature_k);
     double t2 = x[PLANT_NX + PLANT_FX_XE_T2];
-    spring_energy(f, x, dx, fl->spring_valve, t_in, x[PLANT_X_P2] * (p->temperature_k - t2) / (t2 * q[2]));
+    spring_energy(f, x, dx, fl->spring_valve, t_in, x[PLANT_X_P_SPRING] * (p->temperature_k - t2) / (t2 * q[2]));
 }
 
 static int hot_substeps(const plant_fx *f, const double *q, double dt_s, int n)
@@ -116,7 +116,7 @@ static void area_scale(const plant_fx *f, const double *x, double *dx, double s)
     const plant *pl = &f->pl;
     double dv2_nom = dx[PLANT_X_V2];
     dx[PLANT_X_V2] = s * dv2_nom;
-    dx[PLANT_X_P2] -= pl->zn * x[PLANT_X_P2] * (s - 1.0) * dv2_nom / x[PLANT_X_V2];
+    dx[PLANT_X_P_SPRING] -= pl->zn * x[PLANT_X_P_SPRING] * (s - 1.0) * dv2_nom / x[PLANT_X_V2];
     /* the pressure force is what is left of m dv/dt after the damping */
     double f_press = dx[PLANT_X_VEL] * pl->mass_kg + pl->damping_n_s_per_m * x[PLANT_X_VEL];
     dx[PLANT_X_VEL] += (s - 1.0) * f_press * pl->inv_mass;
@@ -138,14 +138,14 @@ const plant_fx_ops truth2_area_sigmoid_ops = {.stage = PLANT_FX_STAGE_GEOMETRY, 
 static void lobe_init(plant_fx *f, const double *q)
 {
     (void)q;
-    f->xe[T2_AUX] = f->pl.x[PLANT_X_P2];
+    f->xe[T2_AUX] = f->pl.x[PLANT_X_P_SPRING];
 }
 
 static void lobe_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
 {
     (void)fl;
     double dy_in = (x[PLANT_X_Y] - f->y_ref_m) / PLANT_M_PER_IN;
-    double dp_bar = (x[PLANT_X_P2] - x[PLANT_NX + T2_AUX]) / 1e5;
+    double dp_bar = (x[PLANT_X_P_SPRING] - x[PLANT_NX + T2_AUX]) / 1e5;
     area_scale(f, x, dx, 1.0 + q[0] * dy_in * dy_in + q[1] * dp_bar);
 }
 
@@ -196,13 +196,13 @@ static void seal_rhs(const plant_fx *f, const double *q, const double *x, double
 {
     (void)fl;
     double vel = x[PLANT_X_VEL];
-    double fr = seal_coulomb(f, q, x[PLANT_X_P2]) * tanh(vel / q[3]) + q[0] * vel * fabs(vel);
+    double fr = seal_coulomb(f, q, x[PLANT_X_P_SPRING]) * tanh(vel / q[3]) + q[0] * vel * fabs(vel);
     dx[PLANT_X_VEL] -= fr * f->pl.inv_mass;
 }
 
 static int seal_substeps(const plant_fx *f, const double *q, double dt_s, int n)
 {
-    double slope = seal_coulomb(f, q, f->pl.x[PLANT_X_P2] * 1.5) / q[3]; /* N s/m at v = 0 */
+    double slope = seal_coulomb(f, q, f->pl.x[PLANT_X_P_SPRING] * 1.5) / q[3]; /* N s/m at v = 0 */
     return need_steps(dt_s, 0.5 * slope * f->pl.inv_mass, n);
 }
 
@@ -370,28 +370,28 @@ static double bore_cda(double d) { return T2_FITTING_CD * T2_PI / 4.0 * d * d; }
 static void seg_init(plant_fx *f, const double *q)
 {
     (void)q;
-    f->xe[T2_AUX] = f->xe[T2_AUX2] = f->pl.x[PLANT_X_P1];
+    f->xe[T2_AUX] = f->xe[T2_AUX2] = f->pl.x[PLANT_X_P_PIPE];
 }
 
 static void seg_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
 {
     const plant *pl = &f->pl;
     double vseg = pl->p.pipe_volume_m3 * q[1] / T2_SEGMENTS, cda = bore_cda(q[0]);
-    double n0 = x[PLANT_X_P1], n1 = x[PLANT_NX + T2_AUX], n2 = x[PLANT_NX + T2_AUX2];
+    double n0 = x[PLANT_X_P_PIPE], n1 = x[PLANT_NX + T2_AUX], n2 = x[PLANT_NX + T2_AUX2];
     double m01 = restriction_flow(pl, cda, n0, n1), m12 = restriction_flow(pl, cda, n1, n2);
     double m_s, m_v, m_a;
-    manifold_flows(pl, n2, x[PLANT_X_P2], x[PLANT_X_P3], &m_s, &m_v, &m_a);
+    manifold_flows(pl, n2, x[PLANT_X_P_SPRING], x[PLANT_X_P_ACC], &m_s, &m_v, &m_a);
     double c = pl->zn * pl->rt / vseg;
-    dx[PLANT_X_P1] = c * (fl->compressor - m01);
+    dx[PLANT_X_P_PIPE] = c * (fl->compressor - m01);
     dx[PLANT_NX + T2_AUX] = c * (m01 - m12);
     dx[PLANT_NX + T2_AUX2] = c * (m12 - m_s - m_v - m_a);
-    dx[PLANT_X_P2] += pl->zn * pl->rt * (m_s - fl->spring_valve) / x[PLANT_X_V2];
-    dx[PLANT_X_P3] = m_a != 0.0 ? acc_rate(pl, x[PLANT_X_P3], m_a) : 0.0;
+    dx[PLANT_X_P_SPRING] += pl->zn * pl->rt * (m_s - fl->spring_valve) / x[PLANT_X_V2];
+    dx[PLANT_X_P_ACC] = m_a != 0.0 ? acc_rate(pl, x[PLANT_X_P_ACC], m_a) : 0.0;
 }
 
 static int seg_substeps(const plant_fx *f, const double *q, double dt_s, int n)
 {
-    double v = f->pl.p.pipe_volume_m3 * q[1] / T2_SEGMENTS, p = fmax(f->pl.x[PLANT_X_P1], f->xe[T2_AUX2]);
+    double v = f->pl.p.pipe_volume_m3 * q[1] / T2_SEGMENTS, p = fmax(f->pl.x[PLANT_X_P_PIPE], f->xe[T2_AUX2]);
     return need_steps(dt_s, 2.0 * restriction_rate(&f->pl, bore_cda(q[0]), 1.5 * p, v), n);
 }
 
@@ -411,7 +411,7 @@ const plant_fx_ops truth2_line_segments_ops = {
 static void hose_init(plant_fx *f, const double *q)
 {
     (void)q;
-    f->xe[T2_AUX] = f->pl.x[PLANT_X_P2];
+    f->xe[T2_AUX] = f->pl.x[PLANT_X_P_SPRING];
 }
 
 static void hose_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
@@ -419,16 +419,16 @@ static void hose_rhs(const plant_fx *f, const double *q, const double *x, double
     const plant *pl = &f->pl;
     double ph = x[PLANT_NX + T2_AUX], zrt = pl->zn * pl->rt;
     double m_s, m_v, m_a;
-    manifold_flows(pl, x[PLANT_X_P1], ph, x[PLANT_X_P3], &m_s, &m_v, &m_a); /* the valve into the hose */
-    double m_f = restriction_flow(pl, bore_cda(q[1]), ph, x[PLANT_X_P2]);
-    dx[PLANT_X_P1] -= zrt * (m_s - fl->spring_valve) / pl->p.pipe_volume_m3;
+    manifold_flows(pl, x[PLANT_X_P_PIPE], ph, x[PLANT_X_P_ACC], &m_s, &m_v, &m_a); /* the valve into the hose */
+    double m_f = restriction_flow(pl, bore_cda(q[1]), ph, x[PLANT_X_P_SPRING]);
+    dx[PLANT_X_P_PIPE] -= zrt * (m_s - fl->spring_valve) / pl->p.pipe_volume_m3;
     dx[PLANT_NX + T2_AUX] = zrt * (m_s - m_f) / q[0];
-    dx[PLANT_X_P2] += zrt * (m_f - fl->spring_valve) / x[PLANT_X_V2];
+    dx[PLANT_X_P_SPRING] += zrt * (m_f - fl->spring_valve) / x[PLANT_X_V2];
 }
 
 static int hose_substeps(const plant_fx *f, const double *q, double dt_s, int n)
 {
-    double p = 1.5 * fmax(f->pl.x[PLANT_X_P2], f->xe[T2_AUX]);
+    double p = 1.5 * fmax(f->pl.x[PLANT_X_P_SPRING], f->xe[T2_AUX]);
     return need_steps(dt_s, restriction_rate(&f->pl, bore_cda(q[1]), p, q[0]), n);
 }
 
@@ -449,7 +449,7 @@ const plant_fx_ops truth2_line_hose_ops = {
 static double compressor_flow(const plant *pl)
 {
     const plant_params *p = &pl->p;
-    double omega = pl->x[PLANT_X_OMEGA], p1 = pl->x[PLANT_X_P1];
+    double omega = pl->x[PLANT_X_OMEGA], p1 = pl->x[PLANT_X_P_PIPE];
     if (!pl->in.compressor || !(omega > 1e-4))
         return 0.0;
     double q = p->compressor_capacity_m3_per_rad * omega;
@@ -463,7 +463,7 @@ static void transport_rhs(const plant_fx *f, const double *q, const double *x, d
     (void)x;
     const plant *pl = &f->pl;
     double m_c = q[0] > 0.0 ? f->mc_delayed : fl->compressor;
-    dx[PLANT_X_P1] = (dx[PLANT_X_P1] + pl->zn_rt_per_v1 * (m_c - fl->compressor)) / (1.0 + q[1]);
+    dx[PLANT_X_P_PIPE] = (dx[PLANT_X_P_PIPE] + pl->zn_rt_per_v1 * (m_c - fl->compressor)) / (1.0 + q[1]);
 }
 
 static void transport_after_tick(plant_fx *f, const double *q, const double raw[4], double dt_s, bool first)
@@ -489,7 +489,7 @@ const plant_fx_ops truth2_line_transport_ops = {
 /* The leaked mass accumulates in AUX (the conservation test reads it). */
 static void spring_leak(const plant_fx *f, const double *x, double *dx, double m)
 {
-    dx[PLANT_X_P2] -= f->pl.zn * f->pl.rt * m / x[PLANT_X_V2];
+    dx[PLANT_X_P_SPRING] -= f->pl.zn * f->pl.rt * m / x[PLANT_X_V2];
     dx[PLANT_NX + T2_AUX] = m;
 }
 
@@ -499,7 +499,7 @@ static void lorifice_rhs(const plant_fx *f, const double *q, const double *x, do
 {
     (void)fl;
     double cda = 0.6 * T2_PI / 4.0 * q[0] * q[0];
-    spring_leak(f, x, dx, plant_orifice_flow(&f->pl, cda, x[PLANT_X_P2], f->pl.p.ambient_pa));
+    spring_leak(f, x, dx, plant_orifice_flow(&f->pl, cda, x[PLANT_X_P_SPRING], f->pl.p.ambient_pa));
 }
 
 const plant_fx_ops truth2_leak_orifice_ops = {
@@ -510,7 +510,7 @@ const plant_fx_ops truth2_leak_orifice_ops = {
 static void lporous_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
 {
     (void)fl;
-    double pa = f->pl.p.ambient_pa, p2 = x[PLANT_X_P2];
+    double pa = f->pl.p.ambient_pa, p2 = x[PLANT_X_P_SPRING];
     spring_leak(f, x, dx, q[0] * (p2 * p2 - pa * pa));
 }
 
@@ -573,9 +573,9 @@ const plant_fx_ops truth2_sensor_drift_ops = {
 static void clearance_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
 {
     const plant *pl = &f->pl;
-    double ratio = fmax(x[PLANT_X_P1] / pl->p.ambient_pa, 1.0);
+    double ratio = fmax(x[PLANT_X_P_PIPE] / pl->p.ambient_pa, 1.0);
     double eta = fmax(1.0 - q[0] * (pow(ratio, 1.0 / 1.3) - 1.0), 0.0);
-    dx[PLANT_X_P1] -= pl->zn_rt_per_v1 * (1.0 - eta) * fl->compressor;
+    dx[PLANT_X_P_PIPE] -= pl->zn_rt_per_v1 * (1.0 - eta) * fl->compressor;
 }
 
 const plant_fx_ops truth2_unknown_clearance_ops = {.stage = PLANT_FX_STAGE_FLOW, .rhs = clearance_rhs};
@@ -597,16 +597,16 @@ static void creep_init(plant_fx *f, const double *q)
 {
     (void)q;
     f->xe[T2_AUX] = 0.0;
-    f->xe[T2_AUX2] = f->pl.x[PLANT_X_P2];
+    f->xe[T2_AUX2] = f->pl.x[PLANT_X_P_SPRING];
 }
 
 static void creep_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
 {
     (void)fl;
     double vc = x[PLANT_NX + T2_AUX];
-    double dvc = (q[0] * (x[PLANT_X_P2] - x[PLANT_NX + T2_AUX2]) - vc) / q[1];
+    double dvc = (q[0] * (x[PLANT_X_P_SPRING] - x[PLANT_NX + T2_AUX2]) - vc) / q[1];
     dx[PLANT_NX + T2_AUX] = dvc;
-    dx[PLANT_X_P2] -= f->pl.zn * x[PLANT_X_P2] * dvc / (x[PLANT_X_V2] + vc);
+    dx[PLANT_X_P_SPRING] -= f->pl.zn * x[PLANT_X_P_SPRING] * dvc / (x[PLANT_X_V2] + vc);
 }
 
 const plant_fx_ops truth2_unknown_creep_ops = {

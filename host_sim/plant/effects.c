@@ -178,8 +178,8 @@ void plant_fx_replace_flows(const plant *pl, const double *x, double *dx, const 
                             double m_s, double m_v)
 {
     const double zn = pl->zn, rt = pl->rt, v1 = pl->p.pipe_volume_m3, v2 = x[PLANT_X_V2];
-    dx[PLANT_X_P1] += zn * rt * ((m_c - fl->compressor) - (m_s - fl->spring_valve) - (m_v - fl->vent_valve)) / v1;
-    dx[PLANT_X_P2] += zn * rt * (m_s - fl->spring_valve) / v2;
+    dx[PLANT_X_P_PIPE] += zn * rt * ((m_c - fl->compressor) - (m_s - fl->spring_valve) - (m_v - fl->vent_valve)) / v1;
+    dx[PLANT_X_P_SPRING] += zn * rt * (m_s - fl->spring_valve) / v2;
 }
 
 void plant_fx_thermal_balance(const plant_fx *f, const double *x, double *dx, const plant_flows *fl, double tau,
@@ -198,7 +198,7 @@ void plant_fx_thermal_balance_in(const plant_fx *f, const double *x, double *dx,
     const plant_params *p = &f->pl.p;
     const double *xe = x + PLANT_NX;
     double *dxe = dx + PLANT_NX;
-    const double p1 = x[PLANT_X_P1], p2 = x[PLANT_X_P2], v2 = x[PLANT_X_V2], v1 = p->pipe_volume_m3;
+    const double p1 = x[PLANT_X_P_PIPE], p2 = x[PLANT_X_P_SPRING], v2 = x[PLANT_X_V2], v1 = p->pipe_volume_m3;
     double k = p->heat_ratio_k, z = p->compressibility, r = p->gas_constant_j_per_kg_k;
     double t2 = xe[PLANT_FX_XE_T2], t1 = xe[PLANT_FX_XE_T1];
     double m_s = fl->spring_valve, m_v = fl->vent_valve, m_c = fl->compressor, m_a = fl->acc_valve;
@@ -210,8 +210,8 @@ void plant_fx_thermal_balance_in(const plant_fx *f, const double *x, double *dx,
     double d_p1 = z * k * r * (t_in * m_c - t_s_src * m_s - t1 * (m_v + m_a)) / v1 +
                   p1 * (p->temperature_k - t1) / (t1 * tau);
     double d_t1 = t1 * d_p1 / p1 - (m_c - m_s - m_v - m_a) * r * t1 * t1 / (p1 * v1);
-    dx[PLANT_X_P2] = d_p2;
-    dx[PLANT_X_P1] = d_p1;
+    dx[PLANT_X_P_SPRING] = d_p2;
+    dx[PLANT_X_P_PIPE] = d_p1;
     dxe[PLANT_FX_XE_T2] = d_t2;
     dxe[PLANT_FX_XE_T1] = d_t1;
 }
@@ -222,7 +222,7 @@ void plant_fx_scale_area(const plant_fx *f, const double *x, double *dx, double 
     double dv2_nom = dx[PLANT_X_V2];
     double dv2 = dv2_nom * s;
     dx[PLANT_X_V2] = dv2;
-    dx[PLANT_X_P2] -= pl->zn * x[PLANT_X_P2] * (dv2 - dv2_nom) / x[PLANT_X_V2];
+    dx[PLANT_X_P_SPRING] -= pl->zn * x[PLANT_X_P_SPRING] * (dv2 - dv2_nom) / x[PLANT_X_V2];
     double f_press = dx[PLANT_X_VEL] * pl->mass_kg + pl->damping_n_s_per_m * x[PLANT_X_VEL];
     dx[PLANT_X_VEL] += f_press * (s - 1.0) / pl->mass_kg;
 }

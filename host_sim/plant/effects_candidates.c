@@ -109,9 +109,9 @@ static void valve_rhs(const plant_fx *f, const double *q, const double *x, doubl
     if (q[2] > 0.0) {
         double a = pl->spring_valve_area_m2, av = p->vent_valve_cd * pl->vent_valve_area_m2;
         m_s = pl->in.spring_valve ? plant_fx_two_way(pl, p->spring_valve_cd_in * a, p->spring_valve_cd_out * a,
-                                                     x[PLANT_X_P1], x[PLANT_X_P2], q[2])
+                                                     x[PLANT_X_P_PIPE], x[PLANT_X_P_SPRING], q[2])
                                   : 0.0;
-        m_v = pl->in.vent_valve ? plant_fx_two_way(pl, av, av, x[PLANT_X_P1], p->ambient_pa, q[2]) : 0.0;
+        m_v = pl->in.vent_valve ? plant_fx_two_way(pl, av, av, x[PLANT_X_P_PIPE], p->ambient_pa, q[2]) : 0.0;
     }
     plant_fx_replace_flows(pl, x, dx, fl, fl->compressor, m_s * f->open_frac[0], m_v * f->open_frac[1]);
 }
@@ -155,10 +155,10 @@ static void line_hose_flows(const plant_fx *f, const double *q, const double *x,
     const plant_params *p = &pl->p;
     double vh = line_hose_m3(q), ph = x[PLANT_NX + LINE_HOSE], a = pl->spring_valve_area_m2;
     *m_valve = pl->in.spring_valve ? plant_fx_two_way(pl, p->spring_valve_cd_in * a, p->spring_valve_cd_out * a,
-                                                      x[PLANT_X_P1], ph, 0.0)
+                                                      x[PLANT_X_P_PIPE], ph, 0.0)
                                    : 0.0;
     double cda = q[5] * p->spring_valve_cd_in * a;
-    *m_fit = plant_fx_two_way(pl, cda, cda, ph, x[PLANT_X_P2], 0.0);
+    *m_fit = plant_fx_two_way(pl, cda, cda, ph, x[PLANT_X_P_SPRING], 0.0);
     dx[PLANT_NX + LINE_HOSE] = pl->zn * pl->rt * (*m_valve - *m_fit) / vh;
 }
 
@@ -168,7 +168,7 @@ static void line_rhs(const plant_fx *f, const double *q, const double *x, double
     double m_c = q[0] > 0.0 ? f->mc_delayed : fl->compressor;
     if (q[2] > 0.0) {
         double tau = fmax(q[3], 1e-3);
-        double m_line = q[2] / (pl->zn * pl->rt * tau) * (x[PLANT_NX + LINE_TUBE] - x[PLANT_X_P1]);
+        double m_line = q[2] / (pl->zn * pl->rt * tau) * (x[PLANT_NX + LINE_TUBE] - x[PLANT_X_P_PIPE]);
         dx[PLANT_NX + LINE_TUBE] = pl->zn * pl->rt * (m_c - m_line) / q[2];
         m_c = m_line;
     }
@@ -176,8 +176,8 @@ static void line_rhs(const plant_fx *f, const double *q, const double *x, double
     if (line_hose_m3(q) > 0.0)
         line_hose_flows(f, q, x, dx, &m_s, &m_fit);
     plant_fx_replace_flows(pl, x, dx, fl, m_c, m_s, fl->vent_valve);
-    dx[PLANT_X_P2] += pl->zn * pl->rt * (m_fit - m_s) / x[PLANT_X_V2]; /* the spring gets the fitting's flow */
-    dx[PLANT_X_P1] *= pl->p.pipe_volume_m3 / line_junction_m3(f, q);
+    dx[PLANT_X_P_SPRING] += pl->zn * pl->rt * (m_fit - m_s) / x[PLANT_X_V2]; /* the spring gets the fitting's flow */
+    dx[PLANT_X_P_PIPE] *= pl->p.pipe_volume_m3 / line_junction_m3(f, q);
 }
 
 /* Substeps that keep RK4 stable: the tube's fastest mode decays at
@@ -222,9 +222,9 @@ static void line_after_tick(plant_fx *f, const double *q, const double raw[4], d
 static void line_sensed(const plant_fx *f, const double *q, double out[4])
 {
     if (line_hose_m3(q) > 0.0)
-        out[1] += q[6] * (f->xe[LINE_HOSE] - f->pl.x[PLANT_X_P2]);
+        out[1] += q[6] * (f->xe[LINE_HOSE] - f->pl.x[PLANT_X_P_SPRING]);
     if (q[2] > 0.0)
-        out[2] += q[7] * (f->xe[LINE_TUBE] - f->pl.x[PLANT_X_P1]);
+        out[2] += q[7] * (f->xe[LINE_TUBE] - f->pl.x[PLANT_X_P_PIPE]);
 }
 const plant_fx_ops fx_line_delay_ops = {.stage = PLANT_FX_STAGE_VOLUME, .uses = PLANT_FX_USES_AUX | PLANT_FX_USES_DELAY,
                                         .init = line_init, .rhs = line_rhs, .after_tick = line_after_tick,
@@ -235,8 +235,8 @@ static void leak_rhs(const plant_fx *f, const double *q, const double *x, double
 {
     (void)fl;
     const plant *pl = &f->pl;
-    double m_leak = plant_orifice_flow(pl, q[0], x[PLANT_X_P2], pl->p.ambient_pa);
-    dx[PLANT_X_P2] -= pl->zn * pl->rt * m_leak / x[PLANT_X_V2];
+    double m_leak = plant_orifice_flow(pl, q[0], x[PLANT_X_P_SPRING], pl->p.ambient_pa);
+    dx[PLANT_X_P_SPRING] -= pl->zn * pl->rt * m_leak / x[PLANT_X_V2];
 }
 const plant_fx_ops fx_leak_ops = {.stage = PLANT_FX_STAGE_FLOW, .rhs = leak_rhs};
 

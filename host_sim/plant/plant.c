@@ -91,7 +91,7 @@ double plant_acc_volume_m3(const plant *pl)
 {
     if (pl->p.acc_type == PLANT_ACC_DIAPHRAGM) {
         double v, dv;
-        plant_diaphragm_volume(&pl->p, pl->x[PLANT_X_P3], &v, &dv);
+        plant_diaphragm_volume(&pl->p, pl->x[PLANT_X_P_ACC], &v, &dv);
         return v;
     }
     return pl->p.acc_volume_m3;
@@ -126,7 +126,7 @@ void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PL
     const plant_params *p = &pl->p;
     const plant_inputs *in = &pl->in;
     const double pa = p->ambient_pa;
-    double omega = x[PLANT_X_OMEGA], p1 = x[PLANT_X_P1], p2 = x[PLANT_X_P2], p3 = x[PLANT_X_P3];
+    double omega = x[PLANT_X_OMEGA], p1 = x[PLANT_X_P_PIPE], p2 = x[PLANT_X_P_SPRING], p3 = x[PLANT_X_P_ACC];
     double v2 = x[PLANT_X_V2], y = x[PLANT_X_Y], vel = x[PLANT_X_VEL];
 
     /* Motor (the program's alp): the pressure torque acts only while turning forward. */
@@ -197,9 +197,9 @@ void plant_derivatives(const plant *pl, const double x[PLANT_NX], double dxdt[PL
     }
 
     dxdt[PLANT_X_OMEGA] = alpha;
-    dxdt[PLANT_X_P1] = d_p1;
-    dxdt[PLANT_X_P2] = d_p2;
-    dxdt[PLANT_X_P3] = d_p3;
+    dxdt[PLANT_X_P_PIPE] = d_p1;
+    dxdt[PLANT_X_P_SPRING] = d_p2;
+    dxdt[PLANT_X_P_ACC] = d_p3;
     dxdt[PLANT_X_V2] = dv2;
     dxdt[PLANT_X_Y] = vel;
     dxdt[PLANT_X_VEL] = force * pl->inv_mass;
@@ -239,9 +239,9 @@ void plant_init(plant *pl, const plant_params *p)
     pl->vent_valve_area_m2 = PLANT_PI / 4.0 * p->vent_valve_diameter_m * p->vent_valve_diameter_m;
     pl->acc_valve_area_m2 = PLANT_PI / 4.0 * p->acc_valve_diameter_m * p->acc_valve_diameter_m;
     pl->x[PLANT_X_OMEGA] = p->init_motor_speed_rad_per_s;
-    pl->x[PLANT_X_P1] = p->init_p_pipe_pa;
-    pl->x[PLANT_X_P2] = p->init_p_spring_pa;
-    pl->x[PLANT_X_P3] = p->acc_type == PLANT_ACC_NONE ? p->ambient_pa : p->acc_charge_pa;
+    pl->x[PLANT_X_P_PIPE] = p->init_p_pipe_pa;
+    pl->x[PLANT_X_P_SPRING] = p->init_p_spring_pa;
+    pl->x[PLANT_X_P_ACC] = p->acc_type == PLANT_ACC_NONE ? p->ambient_pa : p->acc_charge_pa;
     pl->x[PLANT_X_V2] = p->spring_volume0_m3;
     pl->x[PLANT_X_Y] = p->init_height_m;
     pl->x[PLANT_X_VEL] = p->init_velocity_m_per_s;
@@ -366,9 +366,9 @@ static uint16_t to_counts(double value, double eng_lo, double eng_hi, double raw
 void plant_sensed(const plant *pl, double out[4])
 {
     out[0] = pl->x[PLANT_X_Y];
-    out[1] = pl->x[PLANT_X_P2];
-    out[2] = pl->x[PLANT_X_P1];
-    out[3] = pl->p.acc_type == PLANT_ACC_NONE ? pl->p.ambient_pa : pl->x[PLANT_X_P3];
+    out[1] = pl->x[PLANT_X_P_SPRING];
+    out[2] = pl->x[PLANT_X_P_PIPE];
+    out[3] = pl->p.acc_type == PLANT_ACC_NONE ? pl->p.ambient_pa : pl->x[PLANT_X_P_ACC];
 }
 
 void plant_counts(const plant_sensor_params *sp, const double sensed[4], plant_rng *rng, uint16_t counts[4])

@@ -148,8 +148,8 @@ static void test_line_tube_matches_the_truth_tube(void **state)
     assert_int_equal(plant_fx_init(&cand, &p, candidate(LINE_DELAY), cp), 0);
     cycle(&cand);
     cycle(&tr);
-    assert_true(fabs(cand.pl.x[PLANT_X_P1] - tr.pl.x[PLANT_X_P1]) < 1e-6 * tr.pl.x[PLANT_X_P1]);
-    assert_true(fabs(cand.pl.x[PLANT_X_P2] - tr.pl.x[PLANT_X_P2]) < 1e-6 * tr.pl.x[PLANT_X_P2]);
+    assert_true(fabs(cand.pl.x[PLANT_X_P_PIPE] - tr.pl.x[PLANT_X_P_PIPE]) < 1e-6 * tr.pl.x[PLANT_X_P_PIPE]);
+    assert_true(fabs(cand.pl.x[PLANT_X_P_SPRING] - tr.pl.x[PLANT_X_P_SPRING]) < 1e-6 * tr.pl.x[PLANT_X_P_SPRING]);
     assert_true(fabs(cand.pl.x[PLANT_X_Y] - tr.pl.x[PLANT_X_Y]) < 1e-9);
 }
 
@@ -173,15 +173,16 @@ static void test_line_hose(void **state)
         plant_fx_set_inputs(&hose, &charge);
         plant_fx_advance(&hose, 0.01, 10);
     }
-    assert_true(hose.xe[PLANT_FX_XE_AUX + 1] > hose.pl.x[PLANT_X_P2] + 1000.0);
+    assert_true(hose.xe[PLANT_FX_XE_AUX + 1] > hose.pl.x[PLANT_X_P_SPRING] + 1000.0);
     cycle(&hose);
     cycle(&tiny);
     cycle(&nominal);
     double ph = hose.xe[PLANT_FX_XE_AUX + 1], s[4];
-    assert_true(fabs(ph - hose.pl.x[PLANT_X_P2]) < 10.0);
+    assert_true(fabs(ph - hose.pl.x[PLANT_X_P_SPRING]) < 10.0);
     plant_fx_sensed(&hose, s);
     assert_true(s[1] == ph);
-    assert_true(fabs(tiny.pl.x[PLANT_X_P2] - nominal.pl.x[PLANT_X_P2]) < 1e-3 * nominal.pl.x[PLANT_X_P2]);
+    double p_spring_pa = nominal.pl.x[PLANT_X_P_SPRING];
+    assert_true(fabs(tiny.pl.x[PLANT_X_P_SPRING] - p_spring_pa) < 1e-3 * p_spring_pa);
     assert_true(fabs(tiny.pl.x[PLANT_X_Y] - nominal.pl.x[PLANT_X_Y]) < 1e-3);
 }
 
@@ -204,7 +205,7 @@ static void test_valve_delay_between_ticks(void **state)
             plant_fx_set_inputs(&f, &in);
             plant_fx_advance(&f, 0.01, 10);
         }
-        p2[i] = f.pl.x[PLANT_X_P2];
+        p2[i] = f.pl.x[PLANT_X_P_SPRING];
     }
     double span = fabs(p2[0] - p2[2]);
     assert_true(span > 1.0); /* Pa, after 1 s: the 10 ms later opening shows */
@@ -227,20 +228,20 @@ static void test_thermal_extensions(void **state)
     assert_int_equal(plant_fx_init(&cand, &p, candidate(THERMAL), cp), 0);
     cycle(&cand);
     cycle(&tr);
-    assert_true(fabs(cand.pl.x[PLANT_X_P2] - tr.pl.x[PLANT_X_P2]) < 1e-6 * tr.pl.x[PLANT_X_P2]);
+    assert_true(fabs(cand.pl.x[PLANT_X_P_SPRING] - tr.pl.x[PLANT_X_P_SPRING]) < 1e-6 * tr.pl.x[PLANT_X_P_SPRING]);
     assert_true(fabs(cand.pl.x[PLANT_X_Y] - tr.pl.x[PLANT_X_Y]) < 1e-9);
     assert_true(fabs(cand.xe[PLANT_FX_XE_TW] - tr.xe[PLANT_FX_XE_TW]) < 1e-6);
     const double qc[PLANT_FX_MAX_PARAMS] = {600.0, 0.0, 600.0, 0.0}, qw[PLANT_FX_MAX_PARAMS] = {600.0, 0.0, 600.0, 0.3};
     assert_int_equal(plant_fx_init(&cold, &p, candidate(THERMAL), qc), 0);
     assert_int_equal(plant_fx_init(&warm, &p, candidate(THERMAL), qw), 0);
-    double p1 = cold.pl.x[PLANT_X_P1];
+    double p1 = cold.pl.x[PLANT_X_P_PIPE];
     plant_inputs in = {true, false, false, false, 4003.4};
     plant_fx_set_inputs(&cold, &in);
     plant_fx_set_inputs(&warm, &in);
     plant_fx_advance(&cold, 0.01, 10);
     plant_fx_advance(&warm, 0.01, 10);
-    double rise = (warm.pl.x[PLANT_X_P1] - p1) / (cold.pl.x[PLANT_X_P1] - p1);
-    assert_true(cold.pl.x[PLANT_X_P1] > p1);
+    double rise = (warm.pl.x[PLANT_X_P_PIPE] - p1) / (cold.pl.x[PLANT_X_P_PIPE] - p1);
+    assert_true(cold.pl.x[PLANT_X_P_PIPE] > p1);
     assert_true(fabs(rise - 1.3) < 0.013);
 }
 
@@ -269,9 +270,9 @@ static void test_thermal_isothermal_limit_with_accumulator(void **state)
         plant_fx_advance(&iso, 0.01, 10);
         plant_fx_advance(&fast, 0.01, 10);
     }
-    assert_true(iso.pl.x[PLANT_X_P3] > p.init_p_pipe_pa + 1e5); /* the accumulator did charge */
-    assert_true(fabs(fast.pl.x[PLANT_X_P1] - iso.pl.x[PLANT_X_P1]) < 2e-3 * iso.pl.x[PLANT_X_P1]);
-    assert_true(fabs(fast.pl.x[PLANT_X_P3] - iso.pl.x[PLANT_X_P3]) < 2e-3 * iso.pl.x[PLANT_X_P3]);
+    assert_true(iso.pl.x[PLANT_X_P_ACC] > p.init_p_pipe_pa + 1e5); /* the accumulator did charge */
+    assert_true(fabs(fast.pl.x[PLANT_X_P_PIPE] - iso.pl.x[PLANT_X_P_PIPE]) < 2e-3 * iso.pl.x[PLANT_X_P_PIPE]);
+    assert_true(fabs(fast.pl.x[PLANT_X_P_ACC] - iso.pl.x[PLANT_X_P_ACC]) < 2e-3 * iso.pl.x[PLANT_X_P_ACC]);
 }
 
 static void test_out_of_range_is_refused(void **state)
@@ -301,13 +302,13 @@ static void test_leak_empties_and_closed_plant_keeps_mass(void **state)
         plant_fx_advance(&none, 0.01, 10);
         plant_fx_advance(&leak, 0.01, 10);
     }
-    double p_none = none.pl.x[PLANT_X_P2], p_leak = leak.pl.x[PLANT_X_P2];
+    double p_none = none.pl.x[PLANT_X_P_SPRING], p_leak = leak.pl.x[PLANT_X_P_SPRING];
     for (int k = 0; k < 2000; k++) {
         plant_fx_advance(&none, 0.01, 10);
         plant_fx_advance(&leak, 0.01, 10);
     }
-    assert_true(fabs(none.pl.x[PLANT_X_P2] - p_none) < 1.0);   /* Pa: nothing flows */
-    assert_true(leak.pl.x[PLANT_X_P2] < p_leak - 1000.0);       /* the leak lost pressure */
+    assert_true(fabs(none.pl.x[PLANT_X_P_SPRING] - p_none) < 1.0);   /* Pa: nothing flows */
+    assert_true(leak.pl.x[PLANT_X_P_SPRING] < p_leak - 1000.0);       /* the leak lost pressure */
 }
 
 

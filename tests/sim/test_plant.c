@@ -52,18 +52,18 @@ static void test_conservation_closed(void **state)
     thesis_plant(&pl, &cfg);
     cfg.plant.acc_type = PLANT_ACC_TUBE;
     plant_init(&pl, &cfg.plant);
-    pl.x[PLANT_X_P2] = 100.0 * PSI; /* above the 900 lb upper line: the platform rises */
+    pl.x[PLANT_X_P_SPRING] = 100.0 * PSI; /* above the 900 lb upper line: the platform rises */
     set(&pl, 0, 0, 0, 0, 900.0 * LBF);
     double zn = pl.zn;
-    double inv0 = pl.x[PLANT_X_P2] * pow(pl.x[PLANT_X_V2], zn);
-    double p1 = pl.x[PLANT_X_P1], p3 = pl.x[PLANT_X_P3], y0 = pl.x[PLANT_X_Y];
+    double inv0 = pl.x[PLANT_X_P_SPRING] * pow(pl.x[PLANT_X_V2], zn);
+    double p1 = pl.x[PLANT_X_P_PIPE], p3 = pl.x[PLANT_X_P_ACC], y0 = pl.x[PLANT_X_Y];
     for (int i = 0; i < 300; i++)
         plant_step(&pl, 0.01);
     assert_true(pl.x[PLANT_X_Y] - y0 > 0.5 * IN); /* it really moved */
-    double inv = pl.x[PLANT_X_P2] * pow(pl.x[PLANT_X_V2], zn);
+    double inv = pl.x[PLANT_X_P_SPRING] * pow(pl.x[PLANT_X_V2], zn);
     assert_true(fabs(inv / inv0 - 1.0) < 1e-7);
-    assert_true(pl.x[PLANT_X_P1] == p1);
-    assert_true(pl.x[PLANT_X_P3] == p3);
+    assert_true(pl.x[PLANT_X_P_PIPE] == p1);
+    assert_true(pl.x[PLANT_X_P_ACC] == p3);
 }
 
 /* Spring valve open, compressor off, platform at rest between the lines:
@@ -76,22 +76,22 @@ static void equalise(double h, double max_diff_pa)
     static plant_config cfg;
     thesis_plant(&pl, &cfg);
     pl.x[PLANT_X_VEL] = 0.0;
-    pl.x[PLANT_X_P1] = 120.0 * PSI;
-    pl.x[PLANT_X_P2] = 89.0 * PSI;
+    pl.x[PLANT_X_P_PIPE] = 120.0 * PSI;
+    pl.x[PLANT_X_P_SPRING] = 89.0 * PSI;
     set(&pl, 0, 1, 0, 0, 900.0 * LBF);
     double v1 = cfg.plant.pipe_volume_m3, v2 = pl.x[PLANT_X_V2];
-    double expect = (v1 * pl.x[PLANT_X_P1] + v2 * pl.x[PLANT_X_P2]) / (v1 + v2);
+    double expect = (v1 * pl.x[PLANT_X_P_PIPE] + v2 * pl.x[PLANT_X_P_SPRING]) / (v1 + v2);
     int n = (int)lround(5.0 / h);
     for (int i = 0; i < n; i++)
         plant_step(&pl, h);
     print_message("h = %g s, after 5 s: P1 - P2 = %.4g Pa, P2 - expected = %.4g Pa\n", h,
-                  pl.x[PLANT_X_P1] - pl.x[PLANT_X_P2], pl.x[PLANT_X_P2] - expect);
+                  pl.x[PLANT_X_P_PIPE] - pl.x[PLANT_X_P_SPRING], pl.x[PLANT_X_P_SPRING] - expect);
     assert_true(fabs(pl.x[PLANT_X_Y] - cfg.plant.init_height_m) < 1e-12); /* stayed in the dead zone */
-    assert_true(fabs(pl.x[PLANT_X_P1] - pl.x[PLANT_X_P2]) < max_diff_pa);
+    assert_true(fabs(pl.x[PLANT_X_P_PIPE] - pl.x[PLANT_X_P_SPRING]) < max_diff_pa);
     /* the air content is conserved whatever the step */
-    double content = v1 * pl.x[PLANT_X_P1] + v2 * pl.x[PLANT_X_P2];
+    double content = v1 * pl.x[PLANT_X_P_PIPE] + v2 * pl.x[PLANT_X_P_SPRING];
     assert_true(fabs(content / ((v1 + v2) * expect) - 1.0) < 1e-9);
-    assert_true(fabs(pl.x[PLANT_X_P2] - expect) < max_diff_pa);
+    assert_true(fabs(pl.x[PLANT_X_P_SPRING] - expect) < max_diff_pa);
 }
 
 /* Near equal pressures the orifice flow goes like sqrt(dP) (infinite
@@ -135,7 +135,7 @@ static void run_smooth(double h, double t_end, double x[PLANT_NX])
     static plant pl;
     static plant_config cfg;
     thesis_plant(&pl, &cfg);
-    pl.x[PLANT_X_P2] = 100.0 * PSI;
+    pl.x[PLANT_X_P_SPRING] = 100.0 * PSI;
     pl.x[PLANT_X_VEL] = 0.01;
     set(&pl, 1, 0, 0, 0, 900.0 * LBF);
     int n = (int)lround(t_end / h);
@@ -152,7 +152,7 @@ static void test_rk4_order(void **state)
     run_smooth(t_end / 2560, t_end, ref);
     run_smooth(t_end / 40, t_end, a);
     run_smooth(t_end / 80, t_end, b);
-    const int idx[] = {PLANT_X_OMEGA, PLANT_X_P1, PLANT_X_P2, PLANT_X_Y, PLANT_X_VEL};
+    const int idx[] = {PLANT_X_OMEGA, PLANT_X_P_PIPE, PLANT_X_P_SPRING, PLANT_X_Y, PLANT_X_VEL};
     for (size_t i = 0; i < sizeof idx / sizeof idx[0]; i++) {
         double ea = fabs(a[idx[i]] - ref[idx[i]]), eb = fabs(b[idx[i]] - ref[idx[i]]);
         double ratio = ea / eb;

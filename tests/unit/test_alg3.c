@@ -207,12 +207,12 @@ static void test_vent_closes_on_line(void **state)
 {
     (void)state;
     set.alg3_down_pa = 600000;
-    a.watch.lines_valid = true;
+    a.watch.lines.lines_valid = true;
     int32_t h = UPPER_UM + 2540;
     hold(h, 100);
     assert_int_equal(a.phase, LEVELER_ALG3_VENTING);
     /* excess needed: (h - target) * k_down / 1000 / (5/4) under the line at h */
-    int32_t line = leveler_alg3_line_estimate(&a, &set, false, h);
+    int32_t line = leveler_alg3_line_estimate(&a.watch.lines, &set, false, h);
     assert_int_equal(line, 600000 + (int32_t)lround((h - TARGET_UM) / 1000.0 * set.alg3_line_slope_pa_per_mm));
     int32_t p2 = line;
     while (a.phase == LEVELER_ALG3_VENTING && p2 > 200000) {
@@ -343,7 +343,7 @@ static void test_learns_up_line_at_breakaway(void **state)
     (void)state;
     int32_t h0 = LOWER_UM - 20000;
     stuck_then_climb(h0, 690000, 715000, 40);
-    assert_true(a.watch.line_fresh);
+    assert_true(a.watch.lines.line_fresh);
     int32_t expect = 715000 + (int32_t)lround((TARGET_UM - h0) / 1000.0 * set.alg3_line_slope_pa_per_mm);
     assert_in_range(set.alg3_up_pa, expect - 3500, expect + 100);
     assert_int_equal(set.alg3_down_pa, 0);
@@ -355,7 +355,7 @@ static void test_rejects_implausible_line_points(void **state)
     (void)state;
     stuck_then_climb(LOWER_UM - 20000, 100000, 110000, 40);
     assert_int_equal(set.alg3_up_pa, 0);
-    assert_false(a.watch.line_fresh);
+    assert_false(a.watch.lines.line_fresh);
     setup(NULL);
     stuck_then_climb(TARGET_UM - 60000, 690000, 715000, 40);
     assert_int_equal(set.alg3_up_pa, 0);
@@ -390,14 +390,14 @@ static void test_first_point_after_load_change_forgets_other_line(void **state)
 {
     (void)state;
     set.alg3_down_pa = 600000; /* under the new up point: no crossing */
-    a.watch.lines_valid = false;
+    a.watch.lines.lines_valid = false;
     stuck_then_climb(LOWER_UM - 20000, 690000, 715000, 40);
     assert_true(set.alg3_up_pa > 600000);
     assert_int_equal(set.alg3_down_pa, 0);
 
     setup(NULL);
     set.alg3_down_pa = 600000;
-    a.watch.lines_valid = true;
+    a.watch.lines.lines_valid = true;
     stuck_then_climb(LOWER_UM - 20000, 690000, 715000, 40);
     assert_true(set.alg3_up_pa > 600000);
     assert_int_equal(set.alg3_down_pa, 600000);
@@ -409,25 +409,26 @@ static void test_learns_coast(void **state)
 {
     (void)state;
     hold(TARGET_UM - 10000, 1);
-    a.rate_um_s = 20000;
-    leveler_alg3_note_close(&a, 1, 710000, 700000); /* 10 kPa over the line at 20 mm/s */
+    const leveler_alg3_view view = {.filter = &a.filter}; /* no probe: a move of the controller's own */
+    a.filter.rate_um_s = 20000;
+    leveler_alg3_note_close(&a.watch, &a.filter, 1, 710000, 700000); /* 10 kPa over the line at 20 mm/s */
     for (unsigned i = 0; i < 200; i++) { /* coasted 10.01 mm (the filter alone: no phase logic) */
-        leveler_alg3_filter(&a, TARGET_UM + 10);
+        leveler_alg3_filter(&a.filter, TARGET_UM + 10);
     }
     leveler_settings learnt = set;
     bool changed = false;
-    leveler_alg3_learn_coast(&a, &set, &learnt, &changed);
+    leveler_alg3_learn_coast(&a.watch, &view, &set, &learnt, &changed);
     assert_true(changed);
     /* seen: tau = 10.01 mm / 20 mm/s = 500 ms, k = 10000 Pa / 10.01 mm = 999 Pa/mm; halfway from the defaults */
     assert_in_range(learnt.alg3_coast_up_ms, (900 + 500) / 2 - 2, (900 + 500) / 2 + 2);
     assert_in_range(learnt.alg3_coast_k_up_pa_per_mm, (915 + 999) / 2 - 2, (915 + 999) / 2 + 2);
     /* 40 kPa over the line for the same 10 mm: 4x stiffer than learnt, rejected */
-    leveler_alg3_note_close(&a, 1, 740000, 700000);
+    leveler_alg3_note_close(&a.watch, &a.filter, 1, 740000, 700000);
     a.watch.close_valid = false; /* no rate either */
     a.watch.close_height_um = TARGET_UM - 10000;
     changed = false;
     learnt = set;
-    leveler_alg3_learn_coast(&a, &set, &learnt, &changed);
+    leveler_alg3_learn_coast(&a.watch, &view, &set, &learnt, &changed);
     assert_false(changed);
 }
 
@@ -436,15 +437,15 @@ static void test_learns_gap_and_estimates_line_before_breakaway(void **state)
 {
     (void)state;
     int32_t h0 = LOWER_UM - 20000;
-    a.watch.end_valid = true;
-    a.watch.end_trusted = true;
-    a.watch.end_dir = -1;
-    a.watch.end_height_um = h0;
-    a.watch.end_p_spring_pa = 650000;
+    a.watch.lines.end_valid = true;
+    a.watch.lines.end_trusted = true;
+    a.watch.lines.end_dir = -1;
+    a.watch.lines.end_height_um = h0;
+    a.watch.lines.end_p_spring_pa = 650000;
     /* before any break-away the up line is estimated as the stop plus the gap */
     hold(h0, 1);
-    assert_int_equal(leveler_alg3_line_estimate(&a, &set, true, h0), 650000 + set.alg3_gap_pa);
-    a.watch.end_valid = true; /* hold() may have changed nothing, but be explicit */
+    assert_int_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h0), 650000 + set.alg3_gap_pa);
+    a.watch.lines.end_valid = true; /* hold() may have changed nothing, but be explicit */
     set.alg3_gap_pa = 100000; /* a too-wide gap: no early close before the break-away */
     stuck_then_climb(h0, 700000, 716000, 40);
     /* seen about 716000 - 650000 = 66000 (within the P2 lag), halfway from 100000 */
@@ -458,11 +459,11 @@ static void test_settle_waits_for_rest_after_close(void **state)
 {
     (void)state;
     int32_t h0 = UPPER_UM + 200; /* a small departure above, found after > 1 s at rest: a fine vent */
-    a.watch.end_valid = true;
-    a.watch.end_trusted = true;
-    a.watch.end_dir = -1; /* stopped on the down line at P2_PA */
-    a.watch.end_height_um = h0;
-    a.watch.end_p_spring_pa = P2_PA;
+    a.watch.lines.end_valid = true;
+    a.watch.lines.end_trusted = true;
+    a.watch.lines.end_dir = -1; /* stopped on the down line at P2_PA */
+    a.watch.lines.end_height_um = h0;
+    a.watch.lines.end_p_spring_pa = P2_PA;
     for (unsigned i = 0; i < 500 && a.phase != LEVELER_ALG3_VENTING; i++) {
         hold(h0, 1);
     }
@@ -487,7 +488,7 @@ static void test_settle_waits_for_rest_after_close(void **state)
     }
     assert_int_equal(a.phase, LEVELER_ALG3_IDLE);
     assert_true(now - closed >= 700 + LEVELER_ALG3_SETTLE_REST_MS);
-    assert_true(a.watch.end_trusted); /* it moved: the estimate was right */
+    assert_true(a.watch.lines.end_trusted); /* it moved: the estimate was right */
     assert_false(a.retry);
     assert_int_equal(a.moves, 1);
 }
@@ -548,20 +549,20 @@ static void test_failed_estimate_forgotten(void **state)
 {
     (void)state;
     int32_t h0 = LOWER_UM - 5000;
-    a.watch.end_valid = true;
-    a.watch.end_trusted = true;
-    a.watch.end_dir = 1;
-    a.watch.end_height_um = h0;
-    a.watch.end_p_spring_pa = 650000;
+    a.watch.lines.end_valid = true;
+    a.watch.lines.end_trusted = true;
+    a.watch.lines.end_dir = 1;
+    a.watch.lines.end_height_um = h0;
+    a.watch.lines.end_p_spring_pa = 650000;
     hold(h0, 1);
     for (unsigned i = 0; i < 100 && a.phase != LEVELER_ALG3_SETTLING; i++) {
         tick3(h0, 660000, 101325); /* 10 kPa over the estimate: coasts far, closes at once */
     }
     assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
     hold(h0, 200); /* nothing moves */
-    assert_false(a.watch.end_trusted);
+    assert_false(a.watch.lines.end_trusted);
     assert_int_equal(a.phase, LEVELER_ALG3_FILLING); /* on again, now towards the break-away */
-    assert_int_equal(leveler_alg3_line_estimate(&a, &set, true, h0), 0);
+    assert_int_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h0), 0);
 }
 
 /* Double reference of the early-close rule over random states: the fixed-point
@@ -618,7 +619,7 @@ static void test_filter_against_double(void **state)
         s = s * 1664525u + 1013904223u;
         x += (int32_t)((s >> 8) % 20001u) - 10000;
         x = x < 0 ? 0 : (x > 1000000 ? 1000000 : x);
-        leveler_alg3_filter(&a, x);
+        leveler_alg3_filter(&a.filter, x);
         if (i == 0) {
             y = x;
             for (unsigned k = 0; k < LEVELER_ALG3_RATE_TICKS; k++) {
@@ -630,9 +631,9 @@ static void test_filter_against_double(void **state)
         double old = ring[i % LEVELER_ALG3_RATE_TICKS];
         ring[i % LEVELER_ALG3_RATE_TICKS] = y;
         double rate = (y - old) * 1000.0 / (LEVELER_ALG3_RATE_TICKS * 10.0);
-        assert_true(fabs(leveler_alg3_height_um(&a) - y) <= 1.0);
+        assert_true(fabs(leveler_alg3_height_um(&a.filter) - y) <= 1.0);
         if (i > LEVELER_ALG3_RATE_TICKS) {
-            assert_true(fabs(a.rate_um_s - rate) <= 6.0);
+            assert_true(fabs(a.filter.rate_um_s - rate) <= 6.0);
         }
     }
 }
