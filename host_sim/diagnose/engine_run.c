@@ -28,7 +28,7 @@ static void replay_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT])
     memset(out, 0, HAL_OUT_COUNT * sizeof out[0]);
     out[HAL_OUT_COMPRESSOR] = c[0] != 0;
     if (r->p1_track && isfinite(r->p1_track[s->k]))
-        out[HAL_OUT_COMPRESSOR] = r->f->pl.x[PLANT_X_P1] < r->p1_track[s->k];
+        out[HAL_OUT_COMPRESSOR] = r->f->pl.x[PLANT_X_P_PIPE] < r->p1_track[s->k];
     out[HAL_OUT_SPRING_VALVE] = c[1] != 0;
     out[HAL_OUT_VENT_VALVE] = c[2] != 0;
     out[HAL_OUT_ACC_VALVE] = c[3] != 0;
@@ -134,7 +134,7 @@ static int open_plant(engine *e, const engine_request *rq, const plant_fx_model 
         return -1;
     }
     if (rq->init && isfinite(rq->init[3]) && p.acc_type != PLANT_ACC_NONE)
-        e->run_fx.pl.x[PLANT_X_P3] = rq->init[3]; /* the accumulator's volume follows from P3 */
+        e->run_fx.pl.x[PLANT_X_P_ACC] = rq->init[3]; /* the accumulator's volume follows from P3 */
     return 0;
 }
 

@@ -65,9 +65,9 @@ void engine_step_state(const engine *e, double out[6])
     const plant *pl = &e->step_fx.pl;
     out[0] = e->stepper.t_s_now;
     out[1] = pl->x[PLANT_X_Y];
-    out[2] = pl->x[PLANT_X_P2];
-    out[3] = pl->x[PLANT_X_P1];
-    out[4] = pl->p.acc_type == PLANT_ACC_NONE ? NAN : pl->x[PLANT_X_P3];
+    out[2] = pl->x[PLANT_X_P_SPRING];
+    out[3] = pl->x[PLANT_X_P_PIPE];
+    out[4] = pl->p.acc_type == PLANT_ACC_NONE ? NAN : pl->x[PLANT_X_P_ACC];
     out[5] = e->stepper.in.load_n;
 }
 

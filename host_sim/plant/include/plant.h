@@ -185,13 +185,6 @@ enum {
     PLANT_NX
 };
 
-/* TEMPORARY until diag_shim.c and pil_plant.c move: */
-/* the old names of the pressure indices, for those two files only (being rewritten); nothing else may use
- * them: remove this block once they say PLANT_X_P_PIPE / PLANT_X_P_SPRING / PLANT_X_P_ACC. */
-#define PLANT_X_P1 PLANT_X_P_PIPE
-#define PLANT_X_P2 PLANT_X_P_SPRING
-#define PLANT_X_P3 PLANT_X_P_ACC
-
 typedef struct {
     bool compressor;
     bool spring_valve;
