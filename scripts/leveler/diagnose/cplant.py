@@ -3,6 +3,7 @@ host_sim/diagnose/engine.h): a run log replayed open loop or with the firmware
 in the loop, from the state the log starts in (start_state.py), with up to two
 effects of the catalogue (effects.json). Configs are opened once per file
 version (engine.Engine.cached)."""
+import collections
 import glob
 import os
 
@@ -72,6 +73,7 @@ class CPlant(Simulator):
         engine.library(lib_path)      # found and checked now: a missing library fails here
         self._motor_cache = {}
         self._omega_cache = {}
+        self._start_cache = collections.OrderedDict()
 
     def handle(self, config, effects_nominal=False, lib=None):
         """The config's open handle; DiagnoseInputError naming the file, line and field."""
@@ -160,11 +162,26 @@ class CPlant(Simulator):
         self._omega_cache[key] = out
         return out
 
+    START_CACHE = 256
+
+    def _log_start(self, config, run):
+        """initial_state and the motor's start of a run, once per run object (a fit
+        asks for them at every evaluation; runs are never changed in place). The
+        cache holds the run itself, so its id is not reused while cached."""
+        key = (config, id(run))
+        hit = self._start_cache.get(key)
+        if hit is None or hit[0] is not run:
+            init, duty = initial_state(run)
+            # on the nominal plant, whether the effects are asked for or in the config
+            omega, p1_shift = self.start_motor_speed(config, run, list(init), duty)
+            hit = self._start_cache[key] = (run, init, omega, p1_shift)
+            while len(self._start_cache) > self.START_CACHE:
+                self._start_cache.popitem(last=False)
+        return list(hit[1]), hit[2], hit[3]
+
     def start_state(self, config, run, effect=None, params=None):
         """The 5 initial values a run starts from (engine_request.init), estimated from the log."""
-        init, duty = initial_state(run)
-        # on the nominal plant, whether the effects are asked for or in the config
-        omega, p1_shift = self.start_motor_speed(config, run, list(init), duty)
+        init, omega, p1_shift = self._log_start(config, run)
         init[2] += p1_shift
         params = params or {}
         dh, dp = getattr(run, "start_shift", (0.0, 0.0))

@@ -293,8 +293,17 @@ def _run_pair(name, starts, fit_opts, screen=False):
     return name, res
 
 
+def _cost(name):
+    """A fit's expected cost, for the order of submission: its parameters (a pair's
+    both); line_delay's eight and RK4 substeps make it the longest by far."""
+    return sum(len(fx.get(n).params) for n in fx.parts(name))
+
+
 def _in_pool(spec, config, calib, holdout, mode, jobs, work, progress):
-    """Runs work [(fn, args)] in parallel processes (or here with jobs 1). Returns {name: result}."""
+    """Runs work [(fn, args)] (args[0]: the effect's name) in parallel processes (or
+    here with jobs 1). The longest fits are submitted first, so that one does not
+    start last and keep the other process idle; results and progress keep the
+    order of work. Returns {name: result}."""
     out = {}
     if jobs <= 1:
         _init_worker(spec, config, calib, holdout, mode)
@@ -306,8 +315,9 @@ def _in_pool(spec, config, calib, holdout, mode, jobs, work, progress):
         return out
     with ProcessPoolExecutor(max_workers=jobs, initializer=_init_worker,
                              initargs=(spec, config, calib, holdout, mode)) as pool:
-        futs = [pool.submit(fn, *args) for fn, args in work]
-        for f in futs:
+        order = sorted(range(len(work)), key=lambda i: -_cost(work[i][1][0]))
+        futs = {i: pool.submit(work[i][0], *work[i][1]) for i in order}
+        for f in (futs[i] for i in range(len(work))):
             n, r = f.result()
             out[n] = r
             if progress:
