@@ -1,6 +1,6 @@
 /*
- * The rig config's schema (boards/linux-rig/rig.ini has every key with its
- * meaning): its table of fields for the one INI reader (ini_table.h), the
+ * The rig config's schema (boards/linux-rig/rig-defaults.ini has every key with
+ * its meaning and default): its table of fields for the one INI reader (ini_table.h), the
  * [sensor.X] and [output.X] instances, and the keys read by hand (addresses,
  * lists, the parity letter, the module watchdog).
  */
