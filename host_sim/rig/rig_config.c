@@ -1,69 +1,42 @@
-/* INI configuration of leveler-rig: its defaults, the load (the one INI reader,
- * ini_table.h, with the schema of rig_config_schema.c) and the checks of the whole. */
+/* INI configuration of leveler-rig: its defaults (boards/linux-rig/rig-defaults.ini,
+ * compiled in), the load (the one INI reader, ini_table.h, with the schema of
+ * rig_config_schema.c) and the checks of the whole. */
 #define _POSIX_C_SOURCE 200809L
 #include "rig_config.h"
 #include "rig_config_schema.h"
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+
+/* boards/linux-rig/rig-defaults.ini, compiled in (rig_config_builtin.c, made by CMake from the file). */
+extern const char rig_config_builtin_ini[];
+#define BUILTIN_NAME "rig-defaults.ini (built in)"
+
+/* path (or text, named path) over cfg: 0, or -1 with err. */
+static int read_over(rig_config *cfg, rig_config_state *st, const char *path, const char *text, char *err,
+                     size_t err_len)
+{
+    ini_load load = {.table = &rig_config_table, .config = cfg, .user = st, .err = err, .err_len = err_len};
+    return text ? ini_table_read_text(&load, path, text) : ini_table_read(&load, path);
+}
 
 void rig_config_defaults(rig_config *cfg)
 {
     memset(cfg, 0, sizeof *cfg);
-    snprintf(cfg->name, sizeof cfg->name, "rig");
-    cfg->clock = RIG_CLOCK_MONOTONIC;
-    cfg->lockstep_time_register = 16;
-    cfg->lockstep_step_register = 0;
-    cfg->transport = RIG_TRANSPORT_RTU;
-    snprintf(cfg->device, sizeof cfg->device, "/dev/ttyUSB0");
-    cfg->baud = 19200;
-    cfg->parity = 'N';
-    cfg->data_bits = 8;
-    cfg->stop_bits = 1;
-    snprintf(cfg->host, sizeof cfg->host, "127.0.0.1");
-    cfg->port = 502;
-    cfg->slave = 1;
-    cfg->timeout_ms = 5;
-    for (int c = 0; c < HAL_ADC_COUNT; c++) {
-        rig_channel *ch = &cfg->channel[c];
-        ch->enabled = c != HAL_ADC_P_ACC; /* the accumulator is optional */
-        ch->table = RIG_TABLE_INPUT;
-        ch->address = (uint16_t)c;
-        ch->raw_lo = 0;
-        ch->raw_hi = HAL_ADC_MAX_COUNTS;
-        ch->out_lo = 0;
-        ch->out_hi = HAL_ADC_MAX_COUNTS;
-    }
-    cfg->load.enabled = false;
-    cfg->load.table = RIG_TABLE_INPUT;
-    cfg->load.address = 4;
-    cfg->load.raw_lo = 0;
-    cfg->load.raw_hi = 1;
-    cfg->load.out_lo = 0;
-    cfg->load.out_hi = 1;
-    cfg->outputs = RIG_OUTPUTS_GPIOD;
-    snprintf(cfg->consumer, sizeof cfg->consumer, "leveler-rig");
-    for (int o = 0; o < HAL_OUT_COUNT; o++) {
-        snprintf(cfg->pin[o].chip, sizeof cfg->pin[o].chip, "gpiochip0");
-        cfg->pin[o].coil = (uint16_t)o;
-    }
-    cfg->supervision_enabled = true;
-    snprintf(cfg->supervision_address, sizeof cfg->supervision_address, "127.0.0.1");
-    cfg->supervision_port = 1502;
-    cfg->read_only = false;
-    cfg->idle_timeout_ms = 60000;
-    cfg->request_timeout_ms = 1000;
-    cfg->max_clients = 4;
-    cfg->log_rotate_bytes = 0;
-    cfg->log_keep_files = 5;
+    /* No INI value says "not given": a run log without [sensor.load] needs load_n (check_whole). */
     cfg->log_load_n = NAN;
-    snprintf(cfg->mbaps_address, sizeof cfg->mbaps_address, "0.0.0.0");
-    cfg->mbaps_port = 802;
-    cfg->mbaps_write_role_count = 1;
-    snprintf(cfg->mbaps_write_roles[0], sizeof cfg->mbaps_write_roles[0], "Operator");
-    cfg->auto_clear_after_s = 0;
-    cfg->auto_clear_max_per_hour = 6;
+    rig_config_state st = {0};
+    char err[512];
+    if (read_over(cfg, &st, BUILTIN_NAME, rig_config_builtin_ini, err, sizeof err) != 0) {
+        fprintf(stderr, "leveler: the rig's built-in defaults do not load: %s\n", err);
+        abort(); /* the build checks them: tests/rig/test_rig_defaults.c */
+    }
+    /* configured says the config file named the output (check_whole); the built-in
+     * [output.X] give only what the output takes when it is named. */
+    for (int o = 0; o < HAL_OUT_COUNT; o++)
+        cfg->pin[o].configured = false;
 }
 
 static int check_whole(const char *path, const rig_config *cfg, bool seen_watchdog_register, char *err,
@@ -72,8 +45,7 @@ static int check_whole(const char *path, const rig_config *cfg, bool seen_watchd
 int rig_config_load(const char *path, rig_config *cfg, char *err, size_t err_len)
 {
     rig_config_state st = {0};
-    ini_load load = {.table = &rig_config_table, .config = cfg, .user = &st, .err = err, .err_len = err_len};
-    if (ini_table_read(&load, path) != 0)
+    if (read_over(cfg, &st, path, NULL, err, err_len) != 0)
         return -1;
     return check_whole(path, cfg, st.seen_watchdog_register, err, err_len);
 }

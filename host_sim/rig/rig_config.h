@@ -1,7 +1,7 @@
 /*
  * leveler-rig configuration: one INI file, read by the one INI reader
- * (ini_table.h); see boards/linux-rig/rig.ini for every key with its meaning. Parse errors name the file, the line, the
- * [section] key and, for numbers, the allowed range.
+ * (ini_table.h); see boards/linux-rig/rig-defaults.ini for every key with its meaning and default, rig.ini for
+ * an example. Parse errors name the file, the line, the [section] key and, for numbers, the allowed range.
  */
 #ifndef LEVELER_RIG_CONFIG_H
 #define LEVELER_RIG_CONFIG_H
@@ -99,7 +99,7 @@ typedef struct {
     uint32_t auto_clear_max_per_hour; /* at most this many auto-clears in any hour */
 } rig_config;
 
-/* Defaults: see boards/linux-rig/rig.ini. */
+/* The defaults: boards/linux-rig/rig-defaults.ini, compiled in (aborts if it does not load). */
 void rig_config_defaults(rig_config *cfg);
 
 /* Parse path over the defaults, then check the whole. 0 on success; otherwise

@@ -1,6 +1,6 @@
 /*
- * The rig config's schema (boards/linux-rig/rig.ini has every key with its
- * meaning): its table of fields for the one INI reader (ini_table.h), the
+ * The rig config's schema (boards/linux-rig/rig-defaults.ini has every key with
+ * its meaning and default): its table of fields for the one INI reader (ini_table.h), the
  * [sensor.X] and [output.X] instances, and the keys read by hand (addresses,
  * lists, the parity letter, the module watchdog).
  */
@@ -134,8 +134,16 @@ static int key_watchdog_ms(ini_file *r, const ini_field *f, void *obj, const cha
     return 1;
 }
 
-/* [sensor.X] and [output.X]: the channel or the pin. A channel section present
- * in the file is on unless it says otherwise; the load channel is on. */
+/* A [sensor.X] section of the file turns its channel on at its first key: on
+ * unless the section says enabled = false (read after this, wherever it stands). */
+static rig_channel *seen(rig_config_state *st, int i, rig_channel *ch)
+{
+    if (!st->seen_channel[i])
+        ch->enabled = st->seen_channel[i] = true;
+    return ch;
+}
+
+/* [sensor.X] and [output.X]: the channel (the load's too) or the pin. */
 static void *instance(ini_file *r, const char *section, const char *group, const char *key, int *index)
 {
     (void)group;
@@ -145,15 +153,12 @@ static void *instance(ini_file *r, const char *section, const char *group, const
     bool sensor = !strncmp(section, "sensor.", 7);
     for (int i = 0; sensor && i < HAL_ADC_COUNT; i++)
         if (!strcmp(which, rig_config_channel_names[i])) {
-            if (!st->seen_channel[i])
-                cfg->channel[i].enabled = st->seen_channel[i] = true;
             *index = i;
-            return &cfg->channel[i];
+            return seen(st, i, &cfg->channel[i]);
         }
     if (sensor && !strcmp(which, "load")) {
-        cfg->load.enabled = true;
         *index = HAL_ADC_COUNT;
-        return &cfg->load;
+        return seen(st, HAL_ADC_COUNT, &cfg->load);
     }
     for (int o = 0; !sensor && o < HAL_OUT_COUNT; o++)
         if (!strcmp(which, rig_config_output_names[o])) {

@@ -10,7 +10,7 @@
 
 /* What one load keeps besides the config (ini_load.user). */
 typedef struct {
-    bool seen_channel[HAL_ADC_COUNT]; /* a [sensor.X] of the file turned the channel on */
+    bool seen_channel[HAL_ADC_COUNT + 1]; /* a [sensor.X] of the file turned the channel on (the load last) */
     bool seen_watchdog_register;
 } rig_config_state;
 

@@ -172,6 +172,28 @@ static void watchdog_bounded(void **state)
     expect_error(OUTPUTS "[faults]\nauto_clear_max_per_hour = 0\n", ":12: [faults] auto_clear_max_per_hour:");
 }
 
+/* A [sensor.X] section turns its channel on, the load's too, unless it says
+ * enabled = false, wherever in the section that is. */
+static void channel_sections_turn_on(void **state)
+{
+    (void)state;
+    rig_config cfg;
+    char err[512];
+    assert_int_equal(load_text("[sensor.load]\nenabled = false\nregister = 5\n[sensor.p_acc]\nregister = 3\n"
+                               "enabled = false\n" OUTPUTS, &cfg, err, sizeof err), 0);
+    assert_false(cfg.load.enabled);
+    assert_int_equal(cfg.load.address, 5);
+    assert_false(cfg.channel[HAL_ADC_P_ACC].enabled);
+    assert_int_equal(load_text("[sensor.load]\nregister = 5\n[sensor.p_acc]\nregister = 3\n" OUTPUTS, &cfg, err,
+                               sizeof err), 0);
+    assert_true(cfg.load.enabled);
+    assert_true(cfg.channel[HAL_ADC_P_ACC].enabled);
+    assert_int_equal(load_text(OUTPUTS, &cfg, err, sizeof err), 0); /* the defaults: no load, no accumulator */
+    assert_false(cfg.load.enabled);
+    assert_false(cfg.channel[HAL_ADC_P_ACC].enabled);
+    assert_true(cfg.channel[HAL_ADC_HEIGHT].enabled);
+}
+
 static void missing_file_is_named(void **state)
 {
     (void)state;
@@ -195,6 +217,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(whole_file_checks),
         cmocka_unit_test(hardening_errors),
         cmocka_unit_test(watchdog_bounded),
+        cmocka_unit_test(channel_sections_turn_on),
         cmocka_unit_test(missing_file_is_named),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
