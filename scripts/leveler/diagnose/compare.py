@@ -36,7 +36,7 @@ def model_gap(sim, config, logs, mode):
     """(traces, pooled gap, where table) of the logs under config, each run from the
     start that fits it best among the logs' unresolvable start shifts, as the
     diagnosis scores held-out runs (fit.Problem.best_start)."""
-    from .pipeline import where_table
+    from .evidence_runs import where_table
     sim.check_config(config)
     problem = fit.Problem(sim, config, logs, mode, fit.start_shifts(logs))
     traces = [problem.best_start(r, None, {})[0] for r in logs]

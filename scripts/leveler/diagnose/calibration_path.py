@@ -1,0 +1,140 @@
+"""Calibrate before blaming, in the diagnosis: the nominal parameters fitted first
+(calibrate.py); whether they or the leading effect explain the held-out runs better;
+on the calibration path, the best effects refitted together with them."""
+from dataclasses import replace
+
+from . import calibrate
+from . import candidates
+from . import effects as fx
+from . import fit
+from .cplant import config_path
+from .gap import shrink
+
+# The calibration stands against the best effect (fitted alone on the config as given)
+# only when it leaves a held-out gap smaller by this share of the effect's (and by the
+# noise gate). Within this share the two explain the held-out runs alike: the effect is
+# named, the calibration recorded as its look-alike (`rival`), and the verdict's
+# confidence says so with the experiment that would tell them apart.
+CALIBRATION_FIRST_PCT = 10.0
+
+JOINT_CANDIDATES = 2   # the effects (best alone on the config as given) fitted with the calibration
+
+
+def calibration_step(ask, calib, holdout, folder, threshold):
+    """[2] calibrate before blaming: (report or None, the config the calibration wrote,
+    the runs: those with a config of their own pointed at its calibrated version)."""
+    if not calibrate.supported(ask.sim):
+        ask.progress("[2/4] calibration: not with this simulator; the config as given")
+        return None, ask.config, (calib, holdout)
+    ask.progress("[2/4] calibrating the config's nominal parameters before blaming an effect")
+    rep = calibrate.calibrate(ask.sim, config_path(ask.config), calib, holdout, ask.mode, folder, threshold,
+                              ask.progress)
+    runs = rep.pop("runs")
+    return rep, rep.pop("config_file"), runs
+
+
+def beside_effects(calibration, ranking):
+    """Records the candidates on the config as given beside the calibration's figures;
+    returns the calibration's fitting handles (not written out), or None."""
+    if not calibration:
+        return None
+    calibration["effects_as_given"] = [{k: r[k] for k in ("effect", "holdout_gap", "shrink_pct")}
+                                       for r in ranking]
+    return calibration.pop("handles")
+
+
+def effect_first(calibration, best, gate, progress):
+    """Whether the gap is the leading effect's rather than mis-set nominal values.
+    Both were fitted on the calibration runs (the effect on the config as given) and
+    are judged on held-out runs neither saw. Returns False when the calibration is
+    clearly better: it stands, and an effect must explain what it leaves (calibrated_basis).
+    Otherwise True: the calibration, which bends nominal values to mimic the effect,
+    is not kept (recorded as the effect's `rival` when the two are alike)."""
+    g_cal, g_fx = calibration["holdout_gap"]["after"], best["holdout_gap"]
+    share = CALIBRATION_FIRST_PCT / 100.0
+    if g_cal <= (1.0 - share) * g_fx and g_fx - g_cal >= gate:
+        return False
+    alike = g_fx >= (1.0 - share) * g_cal and calibration["moved"]
+    if alike:
+        calibration["rival"] = {"effect": best["effect"], "moved": list(calibration["moved"]),
+                                "effect_gap": g_fx, "calibration_gap": g_cal}
+    calibration.update(kept=False, moved=[], superseded_by=best["effect"],
+                       why=calibration["why"].replace(", kept", "") +
+                       f"; {best['effect']} alone leaves {g_fx:.3f}: "
+                       + ("alike; the effect is named, the calibration is its look-alike" if alike else
+                          "the effect explains the held-out runs better; calibration not kept"))
+    for p in calibration["parameters"]:
+        p["moved"] = False
+    calibration["ini"] = None
+    progress(f"      {best['effect']} leaves a held-out gap of {g_fx:.3f}, calibration {g_cal:.3f}: "
+             + ("alike" if alike else "the effect explains it better") + "; calibration not kept")
+    return True
+
+
+def _joint_step(handles, as_given, fits, gaps, progress):
+    """The best effects alone, refitted together with the calibration's chosen values
+    (calibrate.joint_fit), scored against the calibrated model's held-out gap; the
+    other candidates keep their scores alone. Returns (the ranking over the calibrated
+    model, the vector of the leading joint fit or of the calibration)."""
+    cal, hold, u, chosen = handles
+    ranking, vectors = [], {}
+    for r in as_given:
+        e = dict(r, shrink_pct=shrink(gaps[1], r["holdout_gap"]), joint=False)
+        ranking.append(e)
+    for r in sorted(as_given, key=lambda x: x["holdout_gap"])[:JOINT_CANDIDATES]:
+        j = calibrate.joint_fit(cal, hold, chosen, fx.get(r["effect"]), fits[r["effect"]]["unit"])
+        e = next(x for x in ranking if x["effect"] == r["effect"])
+        vectors[r["effect"]] = j["u"]
+        e.update(holdout_gap=j["holdout_gap"], calibration_gap=j["calibration_gap"], joint=True,
+                 shrink_pct=shrink(gaps[1], j["holdout_gap"]),
+                 params={k: dict(v, value=j["params"][k]) for k, v in r["params"].items()})
+        progress(f"      {r['effect']:<15} with the calibration: held-out gap {j['holdout_gap']:.3f} "
+                 f"(calibrated {gaps[1]:.3f}, {e['shrink_pct']:+.1f}%)")
+    candidates.rank(ranking)
+    return ranking, vectors.get(ranking[0]["effect"], u)
+
+
+def calibrated_basis(ask, evidence, calibration, handles, runs, basis):
+    """The calibration stands: the basis the candidates are judged on becomes the
+    calibrated model (its runs, gaps, joint fits); the threshold and what is left
+    unexplained are measured against it."""
+    calib, holdout = runs
+    gaps = (calibration["calibration_gap"]["after"], calibration["holdout_gap"]["after"])
+    ranking, u_top = _joint_step(handles, basis.ranking, basis.fits, gaps, ask.progress)
+    work = handles[0].config(u_top)
+    cal_problem = fit.Problem(ask.sim, work, calib, ask.mode)
+    hold_problem = fit.Problem(ask.sim, handles[0].config(handles[2]), holdout, ask.mode, fit.start_shifts(holdout))
+    floor, threshold = evidence.threshold(hold_problem, gaps[1])
+    return replace(basis, calib=calib, holdout=holdout, gaps=gaps, ranking=ranking, work=work,
+                   cal_problem=cal_problem, hold_problem=hold_problem, floor=floor, threshold=threshold,
+                   calibrated=True, u_top=u_top)
+
+
+def settle(ask, calibration, handles, basis, named):
+    """On the calibration path: the config the verdict stands on (the leading joint
+    fit's when its effect is named, else the calibration's) and what moved in it.
+    Returns (the held-out problem on that config, its vector)."""
+    cal, hold, u, chosen = handles
+    v = basis.u_top if named else u
+    if named:
+        _record_with_effect(calibration, cal, chosen, basis.ranking[0], cal.space.values(v))
+    return fit.Problem(ask.sim, cal.config(v), basis.holdout, ask.mode, fit.start_shifts(basis.holdout)), v
+
+
+def _record_with_effect(calibration, cal, chosen, top, vals):
+    """The calibration's report once an effect is named with it: the values fitted with
+    the effect are the model's; the calibration alone's stay beside them."""
+    moved = [p["name"] for j, p in enumerate(calibration["parameters"]) if j in chosen and
+             abs(vals[j] / p["config"] - 1.0) >= calibrate.MATERIAL_REL]
+    calibration.update(with_effect={"effect": top["effect"],
+                                    "values": {p["name"]: float(vals[j])
+                                               for j, p in enumerate(calibration["parameters"])}},
+                       moved=moved, kept=bool(moved))
+    for j, p in enumerate(calibration["parameters"]):
+        p["moved"] = p["name"] in moved
+        if j in chosen:
+            p.update(value_alone=p["value"], change_pct_alone=p["change_pct"], value=float(vals[j]),
+                     change_pct=(float(vals[j]) / p["config"] - 1.0) * 100.0)
+    calibration["ini"] = calibrate.ini_text(cal.space.config_file, cal.space.name, cal.space.params, vals,
+                                            [f"fitted with {top['effect']}" for _ in cal.space.params]) \
+        if moved else None

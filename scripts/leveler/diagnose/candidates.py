@@ -1,0 +1,101 @@
+"""The candidate effects in the diagnosis: each fitted on the calibration runs and
+ranked by held-out shrink, then pairs on top of the leader (pairs.py)."""
+from . import effects as fx
+from . import fit
+from . import pairs
+from .gap import shrink
+
+
+def values_of(entry):
+    """A ranking entry's fitted parameter values, {name: value}."""
+    return {k: v["value"] for k, v in entry["params"].items()}
+
+
+def _rank_fits(candidates, fits, nominal_cal_gap, nominal_hold_gap):
+    ranking = []
+    for name in candidates:
+        r = fits[name]
+        e = fx.get(name)
+        ranking.append({
+            "effect": name,
+            "params": {p.name: dict({"value": r["params"][p.name], "lo": p.lo, "hi": p.hi},
+                                    **r["uncertainty"][p.name])
+                       for p in e.params},
+            "calibration_gap": r["calibration_gap"],
+            "calibration_shrink_pct": shrink(nominal_cal_gap, r["calibration_gap"]),
+            "holdout_gap": r["holdout_gap"],
+            "shrink_pct": shrink(nominal_hold_gap, r["holdout_gap"]),
+            "simulations": r["simulations"],
+            "seconds": r["seconds"],
+        })
+    return ranking
+
+
+def rank(ranking):
+    """Sorts by held-out shrink, best first, and numbers the places."""
+    ranking.sort(key=lambda x: -x["shrink_pct"])
+    for i, r in enumerate(ranking, 1):
+        r["rank"] = i
+
+
+def effects_step(ask, evidence, calib, holdout, hold_problem, gaps):
+    """[3] every candidate fitted on the calibration runs (on the config as given),
+    scored on the held-out runs; ranked by held-out shrink. Returns (ranking, fits)."""
+    nominal_cal_gap, nominal_hold_gap = gaps
+    progress = ask.progress
+    progress(f"[3/4] fitting {len(ask.candidates)} candidate effect(s) on {len(calib)} run(s), "
+             f"scoring on {len(holdout)} held-out run(s)")
+    done = [0]
+
+    def on_fit(name, r):
+        done[0] += 1
+        progress(f"      {done[0]}/{len(ask.candidates)} {name:<15} held-out gap {r['holdout_gap']:.3f} "
+                 f"(nominal {nominal_hold_gap:.3f}, {shrink(nominal_hold_gap, r['holdout_gap']):+.1f}%) "
+                 f"in {r['seconds']:.1f} s")
+
+    fits = fit.fit_all(ask.spec, ask.config, calib, holdout, ask.mode, ask.candidates, ask.jobs, on_fit,
+                       ask.fit_opts)
+    ranking = _rank_fits(ask.candidates, fits, nominal_cal_gap, nominal_hold_gap)
+    evidence.signatures(holdout, hold_problem, ranking)
+    rank(ranking)
+    return ranking, fits
+
+
+def _fit_pairs(ask, basis, plan, screen):
+    """Fits the planned pairs and returns ({name: fit result}, [pair entries])."""
+    nominal_gaps = basis.gaps
+
+    def on_pair(name, r):
+        ask.progress(f"      {name:<31} held-out gap {r['holdout_gap']:.3f} "
+                     f"({shrink(nominal_gaps[1], r['holdout_gap']):+.1f}%) in {r['seconds']:.1f} s")
+
+    res = fit.fit_pairs(ask.spec, basis.work, basis.calib, basis.holdout, plan, ask.mode, ask.jobs, on_pair,
+                        ask.fit_opts, screen)
+    by = {r["effect"]: r for r in basis.ranking}
+    return res, [pairs.entry(n, res[n], by, (len(basis.calib), len(basis.holdout)), shrink, *nominal_gaps, screen)
+                 for n in plan]
+
+
+def pair_step(ask, basis, gate=0.0):
+    """Pairs on top of the leader: a screening fit of each to rank the second
+    effect, full joint fits of the best to judge (pairs.py). Returns
+    (pair entries ranked by evidence, the kept one or None, the ranked second or None)."""
+    ranking = basis.ranking
+    screen = pairs.screen_plan(ranking, basis.fits)
+    if not screen:
+        return [], None, None
+    ask.progress(f"      pairs on top of {ranking[0]['effect']}: screening {len(screen)}")
+    res, screened = _fit_pairs(ask, basis, screen, True)
+    full = pairs.plan(ranking, screened, res)
+    entries = {e["effect"]: e for e in screened}
+    if full:
+        ask.progress(f"      fitting {len(full)} of them jointly in full")
+        entries.update({e["effect"]: e for e in _fit_pairs(ask, basis, full, False)[1]})
+    by = {r["effect"]: r for r in ranking}
+    kept = pairs.judge([entries[n] for n in full], by, basis.threshold, basis.gaps[1] - gate)
+    out = sorted(entries.values(), key=lambda e: e["evidence"])
+    for e in out:
+        ask.progress(f"      {e['effect']:<31} {e['shrink_pct']:+.1f}% ({e['gain_pts']:+.1f} points over the "
+                     f"leader, evidence {e['evidence']:+.1f}, information criterion {e['delta_bic']:+.1f}): "
+                     + ("kept" if e["kept"] else "not kept: " + "; ".join(e["why_not"])))
+    return out, kept, pairs.ranked_second(out, kept)
