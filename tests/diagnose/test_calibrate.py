@@ -88,3 +88,25 @@ def test_the_parameters_come_from_the_physics_not_a_test_set():
     assert "accumulator_cd" not in {n.name for n in calibrate.applicable(
         leveler_config.resolved(cp.config_path("thesis-900lb")))}
     assert len(names) == len(calibrate.NOMINALS)
+
+
+def test_values_carry_to_a_run_config_with_more_parameters(cplant):
+    """Published figures of accumulator runs diagnosed against a config without one
+    (helper-found crash: shapes (10,) against (9,)): each shared parameter moves by the
+    calibration's factor (its value, for the absolute exponent), the accumulator's
+    own keeps the run config's value."""
+    plain = calibrate.Space(cp.config_path("thesis-900lb"), leveler_config.resolved(cp.config_path("thesis-900lb")))
+    acc_path = cp.config_path("thesis-900lb-diaphragm")
+    acc = calibrate.Space(acc_path, leveler_config.resolved(acc_path))
+    assert len(acc.params) == len(plain.params) + 1
+    u = np.full(len(plain.params), 0.75)
+    vals = plain.values(u)
+    got = calibrate._carried(plain, vals, acc)
+    for i, n in enumerate(acc.params):
+        j = next((k for k, m in enumerate(plain.params) if m.key == n.key and m.section == n.section), None)
+        if j is None:
+            assert got[i] == acc.base[i]
+        elif n.log:
+            assert got[i] == pytest.approx(acc.base[i] * vals[j] / plain.base[j], rel=1e-15)
+        else:
+            assert got[i] == vals[j]

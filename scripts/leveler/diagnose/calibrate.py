@@ -164,6 +164,20 @@ def ini_text(config_file, name, params, values, notes=None):
     return "".join(lines)
 
 
+def _carried(space, values, other):
+    """The calibration's values at `space` carried to another config's space by
+    parameter: the same factor (the same value for absolute keys); a parameter the
+    calibrated config does not have (an accumulator's, when --config has none)
+    keeps the other config's own value."""
+    mine = {(n.section, n.key): j for j, n in enumerate(space.params)}
+    out = np.array(other.base, dtype=float)
+    for i, n in enumerate(other.params):
+        j = mine.get((n.section, n.key))
+        if j is not None:
+            out[i] = other.base[i] * values[j] / space.base[j] if other.is_log[i] else values[j]
+    return out
+
+
 class Calibrated:
     """Residuals of the runs under a parameter vector: the C loader reads a
     written config (one file per vector, kept for the caches keyed by path)."""
@@ -180,7 +194,7 @@ class Calibrated:
         same factors (the same values for absolute keys) applied to its values."""
         values = self.space.values(u)
         if space is not None:
-            values = np.where(space.is_log, space.base * values / self.space.base, values)
+            values = _carried(self.space, values, space)
         sp = space or self.space
         text = ini_text(sp.config_file, sp.name, sp.params, values)
         path = os.path.join(self.folder, "cal-" + hashlib.sha1(text.encode()).hexdigest()[:16] + ".ini")
