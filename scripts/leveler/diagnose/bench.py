@@ -1,6 +1,6 @@
 """bench-diagnose: wall time of one full diagnosis (2 calibration runs, 1 holdout,
-all seven candidates in parallel processes) on blind-test logs. Prints figures;
-the target is under 60 s on a 2-core machine."""
+all seven candidates in parallel processes) on blind-test logs. Prints figures
+beside the targets on a 2-core machine: 30 s (issue 21), 10 s (issue 20)."""
 import os
 import subprocess
 import sys
@@ -40,7 +40,7 @@ def main(argv=None):
     print(f"one 55 s closed-loop simulation (firmware in the loop): {one_sim * 1e3:.1f} ms")
     print(f"full diagnosis, 2 calibration + 1 holdout runs, 7 candidates: "
           f"best {min(times):.1f} s, median {sorted(times)[len(times) // 2]:.1f} s over {len(times)} "
-          f"(target < 60 s)")
+          f"(targets: 30 s, issue 21; 10 s, issue 20)")
     return 0
 
 
