@@ -140,3 +140,39 @@ def test_write_is_atomic_on_failure(tmp_path):
         runlog.write(path, log)
     assert path.read_text() == "old contents\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.csv"]
+
+
+@pytest.mark.parametrize("column,bad,words", [
+    ("compressor", "2", "not 0 or 1"), ("p_spring_pa", "nan", "not a finite number"),
+    ("mode", "1.5", "whole number"), ("t_s", "", "empty cell"), ("height_m", "0x1", "not a number"),
+    ("p_pipe_pa", '"613633"', None), ("load_n", "4003.4,1", "extra cells")])
+def test_a_fault_in_a_format_3_log_names_its_line(tmp_path, column, bad, words):
+    """The whole-table reader (one numpy pass) hands any log that is not plain to
+    the cell-by-cell reader, which names the row's line; a quoted number is
+    still a number (csv rules)."""
+    log = synth.make_log(end=2.0)
+    path = tmp_path / "r.csv"
+    runlog.write(path, log)
+    lines = path.read_text().splitlines(keepends=True)
+    first = next(i for i, ln in enumerate(lines) if not ln.startswith("#")) + 1
+    k = first + 40                       # 0-based index of a data line: file line k + 1
+    cells = lines[k].rstrip("\n").split(",")
+    cells[runlog.COLUMNS.index(column)] = bad
+    lines[k] = ",".join(cells) + "\n"
+    path.write_text("".join(lines))
+    if words is None:
+        assert runlog.read(path).p_pipe_pa[40] == 613633.0
+        return
+    with pytest.raises(runlog.RunLogError) as e:
+        runlog.read(path)
+    assert f":{k + 1}:" in str(e.value) and words in str(e.value)
+
+
+def test_time_that_does_not_increase_names_its_line(tmp_path):
+    log = synth.make_log(end=2.0)
+    log.t_s[60] = log.t_s[59]
+    path = tmp_path / "r.csv"
+    runlog.write(path, log)
+    first = next(i for i, ln in enumerate(path.read_text().splitlines()) if not ln.startswith("#")) + 1
+    with pytest.raises(runlog.RunLogError, match=rf":{first + 61}: column t_s: time .* does not increase"):
+        runlog.read(path)
