@@ -18,6 +18,7 @@ import ctypes
 import functools
 import json
 import os
+import threading
 
 import numpy as np
 
@@ -71,6 +72,12 @@ _SIGNATURES = {
     "engine_schedule_apply": (_int, [_int, _d, _d, _i, _int, _d, _d, _i, _s, _int]),
     "engine_scenario_loads": (None, [_dbl] * 5 + [_int, _d, _d]),
 }
+
+
+# ctypes lets go of the GIL in a call, and the firmware in the loop is one per
+# process (engine.h): runs, stepping and schedule_apply take turns, whatever the
+# thread (a Dask worker of an existing cluster may run tasks in several)
+_FIRMWARE = threading.RLock()
 
 
 class EngineError(RuntimeError):
@@ -226,8 +233,10 @@ class Engine:
         sensed = np.empty((len(p), n, 4))
         act = np.empty((len(p), n, 4), dtype=np.int32)
         err = _err()
-        if self.lib.engine_run(self._h, ctypes.byref(rq), ctypes.byref(_Result(dptr(sensed), iptr(act))),
-                               err, ERR_LEN) != 0:
+        with _FIRMWARE:
+            rc = self.lib.engine_run(self._h, ctypes.byref(rq), ctypes.byref(_Result(dptr(sensed), iptr(act))),
+                                     err, ERR_LEN)
+        if rc != 0:
             raise EngineError(f"C plant: {_msg(err)}")
         return (sensed[0], act[0]) if one else (sensed, act)
 
@@ -259,9 +268,10 @@ class Engine:
         [initial] ones at the first tick) and the scheduled load, then 10 ms of
         RK4. Returns the state at the tick's start and the actuators applied."""
         applied = (ctypes.c_int32 * 4)()
-        self.lib.engine_step_decide(self._h, (ctypes.c_int32 * 4)(*[int(bool(o)) for o in outputs]), applied)
-        st = self.step_state()
-        self.lib.engine_step_advance(self._h)
+        with _FIRMWARE:
+            self.lib.engine_step_decide(self._h, (ctypes.c_int32 * 4)(*[int(bool(o)) for o in outputs]), applied)
+            st = self.step_state()
+            self.lib.engine_step_advance(self._h)
         return st, tuple(bool(v) for v in applied)
 
     def commission_registers(self, algorithm=0, size=4096, max_runs=32):
@@ -269,7 +279,9 @@ class Engine:
         runs = (ctypes.c_uint16 * (2 * max_runs))()
         values = (ctypes.c_uint16 * size)()
         err = _err()
-        n = self.lib.engine_commission_registers(self._h, int(algorithm), runs, max_runs, values, size, err, ERR_LEN)
+        with _FIRMWARE:
+            n = self.lib.engine_commission_registers(self._h, int(algorithm), runs, max_runs, values, size, err,
+                                                     ERR_LEN)
         if n < 0:
             raise EngineError(_msg(err))
         return [(runs[2 * k], list(values[runs[2 * k]:runs[2 * k] + runs[2 * k + 1]])) for k in range(n)]
@@ -373,7 +385,9 @@ def schedule_apply(t_s, steps):
     load = np.empty(len(t))
     regs = np.empty((len(t), len(schedule_columns())), dtype=np.int32)
     err = _err()
-    if library().engine_schedule_apply(len(rows), dptr(rt), dptr(rl), iptr(vals), len(t), dptr(t), dptr(load),
-                                       iptr(regs), err, ERR_LEN) != 0:
+    with _FIRMWARE:
+        rc = library().engine_schedule_apply(len(rows), dptr(rt), dptr(rl), iptr(vals), len(t), dptr(t),
+                                             dptr(load), iptr(regs), err, ERR_LEN)
+    if rc != 0:
         raise InputError(f"schedule: {_msg(err)}")
     return load, {c: regs[:, j].copy() for j, c in enumerate(schedule_columns())}

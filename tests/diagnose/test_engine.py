@@ -82,3 +82,24 @@ def test_the_resolved_config_is_the_files(eng):
     doc = eng.config_json()
     assert doc["scenario"]["base_load_n"] == pytest.approx(900 * LB, rel=1e-9)
     assert eng.algorithm == doc["controller"]["algorithm"]
+
+
+def test_runs_from_threads_take_turns(cplant):
+    """The firmware in the loop is one per process: closed-loop runs from four
+    threads at once (as a Dask worker with several threads would make them) give
+    each the run it gives alone."""
+    import threading
+    t, load = thesis_schedule(end=8.0, on=1.0, off=5.0)
+    alone, _ = engine.Engine(THESIS).run(t, load, init=[np.nan] * 4 + [0.0])
+    got = [None] * 16       # four rounds of four (without the turns, 8 of 20 differed)
+
+    def one(k):
+        got[k] = engine.Engine(THESIS).run(t, load, init=[np.nan] * 4 + [0.0])[0]
+
+    for r in range(4):
+        threads = [threading.Thread(target=one, args=(4 * r + k,)) for k in range(4)]
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join()
+    assert all(np.array_equal(g, alone) for g in got)
