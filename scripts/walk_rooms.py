@@ -51,7 +51,15 @@ def stays(order, skip=("leveler.cli", "leveler.diagnose.cli", "leveler.diagnose.
 
 
 def main(argv=None):
-    s = stays(walk(sys.argv[1:] if argv is None else argv))
+    argv = sys.argv[1:] if argv is None else argv
+    if "-h" in argv or "--help" in argv:
+        print(__doc__)
+        return 0
+    if "--version" in argv:
+        import leveler
+        print(f"walk_rooms {leveler.__version__}")
+        return 0
+    s = stays(walk(argv))
     for room, fns in s:
         print(f"{room:40s} {', '.join(fns[:6])}{' ...' if len(fns) > 6 else ''}")
     rooms = {r for r, _ in s}
