@@ -24,7 +24,8 @@ double engine_tick_s(void) { return SIM_TICK_S; }
 /* The config's effects at their models' nominal values (ENGINE_EFFECTS_NOMINAL). */
 static void effects_at_nominal(plant_config *cfg)
 {
-    engine_catalogue c = {plant_fx_catalogue, plant_fx_catalogue_count}; /* the config's own: candidates */
+    engine_catalogue c; /* a config's own effects are candidates */
+    (void)engine_catalogue_find(ENGINE_CANDIDATES, &c);
     for (int s = 0; s < PLANT_CONFIG_MAX_EFFECTS; s++) {
         const plant_fx_model *m = cfg->effect_id[s] ? plant_fx_find(c.table, c.count, cfg->effect_id[s]) : NULL;
         for (int j = 0; m && j < m->nparams; j++)
