@@ -1,5 +1,5 @@
 """Runs the blind test's cases: on dask.distributed (leveler-sweep's cluster,
-leveler.sweep.engine.client), or one after the other in this process (--serial).
+leveler.sweep.cluster.client), or one after the other in this process (--serial).
 
 A case (make the logs with a truth, diagnose them as a separate process, run the
 proposed experiment) is one Dask task, keyed by this run and the case's index
@@ -49,7 +49,7 @@ def diagnosis_extra(a, extra, cases):
 def run_jobs(jobs, a, on_result, prog="leveler-blindtest"):
     """Runs jobs [(index, fn, args, kwargs)]; on_result(job, result) as each finishes;
     returns the results in the jobs' order."""
-    from leveler.sweep import engine
+    from leveler.sweep import cluster
     results = {}
     if a.serial:
         for job in jobs:
@@ -57,8 +57,8 @@ def run_jobs(jobs, a, on_result, prog="leveler-blindtest"):
             on_result(job, results[job[0]])
         return [results[j[0]] for j in jobs]
     from dask.distributed import as_completed
-    with engine.client(a.scheduler, a.workers, a.dashboard) as c:
-        print(f"{prog}: {len(jobs)} cases on {engine.cores(c)} Dask worker threads; dashboard {c.dashboard_link}",
+    with cluster.client(a.scheduler, a.workers, a.dashboard) as c:
+        print(f"{prog}: {len(jobs)} cases on {cluster.cores(c)} Dask worker threads; dashboard {c.dashboard_link}",
               flush=True)
         futures = {c.submit(run_one, job, key=f"{prog}-{os.getpid()}-{job[0]}", retries=1): job for job in jobs}
         try:

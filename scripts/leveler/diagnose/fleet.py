@@ -10,7 +10,7 @@ Each rig is diagnosed by leveler-diagnose's own entry point (``cli.main``,
 one process's worth: ``--jobs 1``), into ``OUT/<rig>/`` (diagnosis.json,
 report.html, ...). Then ``OUT/fleet.csv`` (rig, effect, calibrated
 parameters, held-out shrink, how sure) and ``OUT/index.html`` linking each
-rig's report. The cluster is leveler-sweep's (leveler.sweep.engine).
+rig's report. The cluster is leveler-sweep's (leveler.sweep.cluster).
 """
 from __future__ import annotations
 
@@ -145,7 +145,7 @@ def _row(rig, out, seconds):
 
 def run_rigs(rigs, out, extra, a, say):
     """Every rig's row, in the rigs' order: on Dask (leveler-sweep's cluster), or here."""
-    from leveler.sweep import engine
+    from leveler.sweep import cluster
     rows, jobs = {}, []
     for rig in rigs:
         rig_out, key = os.path.join(out, rig.name), inputs_key(rig, extra)
@@ -157,15 +157,15 @@ def run_rigs(rigs, out, extra, a, say):
     if rows:
         say(f"leveler-diagnose --fleet: {len(rows)} rig(s) already diagnosed from the same inputs, kept "
             f"({', '.join(rows)}; --fresh diagnoses them again)")
-    progress = engine.Progress(len(jobs), quiet=a.quiet, prog="leveler-diagnose --fleet", unit="rigs")
+    progress = cluster.Progress(len(jobs), quiet=a.quiet, prog="leveler-diagnose --fleet", unit="rigs")
     if a.serial or not jobs:
         for rig, rig_out, key in jobs:
             rows[rig.name] = diagnose_rig(rig, rig_out, extra, key)
             progress.step()
         return [rows[rig.name] for rig in rigs]
     from dask.distributed import as_completed
-    with engine.client(a.scheduler, a.workers, a.dashboard) as c:
-        say(f"leveler-diagnose --fleet: {len(jobs)} rigs on {engine.cores(c)} worker threads; "
+    with cluster.client(a.scheduler, a.workers, a.dashboard) as c:
+        say(f"leveler-diagnose --fleet: {len(jobs)} rigs on {cluster.cores(c)} worker threads; "
             f"dashboard {c.dashboard_link}")
         futures = {c.submit(diagnose_rig, rig, rig_out, extra, key, key=f"leveler-fleet-{rig.name}", retries=1):
                    rig.name for rig, rig_out, key in jobs}

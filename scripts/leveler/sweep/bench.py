@@ -19,7 +19,7 @@ import time
 
 from .. import cli as leveler_cli
 from .. import runlog
-from . import engine, point as point_mod, study as study_mod, table as table_mod
+from . import cluster, point as point_mod, study as study_mod, table as table_mod
 
 BATCH = 10     # points per task in the last run
 
@@ -46,14 +46,14 @@ def _sweep(points, names, workers, batch=1):
     with tempfile.TemporaryDirectory(prefix="leveler-sweep-bench-") as tmp:
         table = table_mod.Table(tmp, [("point", "int"), ("point_id", "str")])
         table.open()
-        progress = engine.Progress(len(points), quiet=True)
+        progress = cluster.Progress(len(points), quiet=True)
         if workers is None:
-            return engine.run_serial(points, names, table.append, progress)[0], 0.0, 0.0
+            return cluster.run_serial(points, names, table.append, progress)[0], 0.0, 0.0
         t0 = time.monotonic()
-        with engine.client(workers=workers, dashboard=":0") as c:
+        with cluster.client(workers=workers, dashboard=":0") as c:
             c.run(lambda: __import__("leveler.sweep.point"))   # imports done before the clock starts
             startup = time.monotonic() - t0
-            stats, failures = engine.run_dask(c, points, names, table.append, progress, batch=batch)
+            stats, failures = cluster.run_dask(c, points, names, table.append, progress, batch=batch)
             overhead = task_overhead(c)
         if failures:
             raise RuntimeError(f"{len(failures)} points failed: {failures[0][1]}")

@@ -17,7 +17,7 @@ import tempfile
 
 from .. import cli as leveler_cli
 from .. import config as config_mod
-from . import engine, plots, study as study_mod, table as table_mod
+from . import cluster, plots, study as study_mod, table as table_mod
 
 EXIT_INTERRUPTED = 130
 _OURS = (table_mod.CSV_NAME, table_mod.PARQUET_NAME)
@@ -95,13 +95,13 @@ def prepare(a, say):
 
 def execute(a, study, todo, table, say):
     """Runs the points; returns (stats, failures)."""
-    progress = engine.Progress(len(todo), quiet=a.quiet)
+    progress = cluster.Progress(len(todo), quiet=a.quiet)
     if a.serial or not todo:
-        return engine.run_serial(todo, study.figures, table.append, progress)
-    with engine.client(a.scheduler, a.workers, a.dashboard) as c:
+        return cluster.run_serial(todo, study.figures, table.append, progress)
+    with cluster.client(a.scheduler, a.workers, a.dashboard) as c:
         say(f"leveler-sweep: Dask {'cluster ' + a.scheduler if a.scheduler else 'LocalCluster'}, "
-            f"{engine.cores(c)} worker threads; dashboard {c.dashboard_link}")
-        return engine.run_dask(c, todo, study.figures, table.append, progress, a.retries, a.batch)
+            f"{cluster.cores(c)} worker threads; dashboard {c.dashboard_link}")
+        return cluster.run_dask(c, todo, study.figures, table.append, progress, a.retries, a.batch)
 
 
 def report(a, study, table, stats, failures, say):
