@@ -226,10 +226,11 @@ class Engine:
         one = p.ndim == 2
         p = np.ascontiguousarray(p.reshape(-1, MAX_MODELS, MAX_PARAMS))
         wt, wv = _writes(writes)
-        keep = [t, load, _i32(commands), _f64(p1_track), wt, wv, _f64(init),
-                _i32(np.zeros(MAX_MODELS) if kinds is None else kinds), p]
-        rq = _Request(n, dptr(t), dptr(load), iptr(keep[2]), dptr(keep[3]), 0 if wt is None else len(wt),
-                      dptr(wt), iptr(wv), dptr(keep[6]), catalogue, iptr(keep[7]), len(p), dptr(p))
+        # named, so the arrays outlive the call that reads them through pointers
+        cmd, track, start = _i32(commands), _f64(p1_track), _f64(init)
+        ids = _i32(np.zeros(MAX_MODELS) if kinds is None else kinds)
+        rq = _Request(n, dptr(t), dptr(load), iptr(cmd), dptr(track), 0 if wt is None else len(wt),
+                      dptr(wt), iptr(wv), dptr(start), catalogue, iptr(ids), len(p), dptr(p))
         sensed = np.empty((len(p), n, 4))
         act = np.empty((len(p), n, 4), dtype=np.int32)
         err = _err()
