@@ -229,6 +229,8 @@ class Engine:
         # named, so the arrays outlive the call that reads them through pointers
         cmd, track, start = _i32(commands), _f64(p1_track), _f64(init)
         ids = _i32(np.zeros(MAX_MODELS) if kinds is None else kinds)
+        _sizes(n, load=(load, (n,)), commands=(cmd, (n, 4)), p1_track=(track, (n,)), init=(start, (5,)),
+               kinds=(ids, (MAX_MODELS,)))
         rq = _Request(n, dptr(t), dptr(load), iptr(cmd), dptr(track), 0 if wt is None else len(wt),
                       dptr(wt), iptr(wv), dptr(start), catalogue, iptr(ids), len(p), dptr(p))
         sensed = np.empty((len(p), n, 4))
@@ -286,6 +288,14 @@ class Engine:
         if n < 0:
             raise EngineError(_msg(err))
         return [(runs[2 * k], list(values[runs[2 * k]:runs[2 * k] + runs[2 * k + 1]])) for k in range(n)]
+
+
+def _sizes(n, **given):
+    """The C side reads each array at the size the request implies: anything
+    else is refused here, named, rather than read past its end."""
+    for name, (a, want) in given.items():
+        if a is not None and a.shape != want:
+            raise EngineError(f"request: {name} has shape {a.shape}, {n} samples need {want}")
 
 
 def config_json(path=None):

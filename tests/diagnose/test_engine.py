@@ -72,6 +72,10 @@ def test_the_engine_names_what_it_refuses(eng, tmp_path):
         eng.run(t, load, catalogue=engine.TRUTH2, kinds=[101, 0], params=np.zeros((2, 8)))
     with pytest.raises(engine.EngineError, match="closed loop needs the 10 ms tick grid"):
         eng.run(t * 1.5, load)
+    with pytest.raises(engine.EngineError, match=r"commands has shape \(\d+, 3\)"):
+        eng.run(t, load, commands=np.zeros((len(t), 3)))
+    with pytest.raises(engine.EngineError, match="load has shape"):
+        eng.run(t, load[:-1])
     bad = tmp_path / "bad.ini"
     bad.write_text(f"[config]\ninclude = {THESIS}\n\n[spring]\nvolume_in3 = -3\n")
     with pytest.raises(InputError, match=r"bad\.ini:\d+"):
