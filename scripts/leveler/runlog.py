@@ -311,8 +311,8 @@ _NOT_PLAIN = re.compile(r"[^0-9eE+\-.,\n ]")
 
 def _rows_at_once(lines, lineno, ncol):
     """The data rows of a plainly well-formed log in one pass of numpy's C reader
-    (a sweep reads a 5,501-row log in about a third of the cell-by-cell time: 14 ms, not 40): (data,
-    line numbers), or None whenever any row is not plain (a character other than
+    (a 5,501-row log in 14 ms, not the cell-by-cell 40): (data, line numbers),
+    or None whenever any row is not plain (a character other than
     digits, sign, point, exponent and commas; a wrong cell count; a flag not 0/1;
     time not increasing ...): then _rows_one_by_one reads it and names the first
     fault. Formats 1 and 2 (fewer columns) always go one by one."""
