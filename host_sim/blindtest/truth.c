@@ -19,7 +19,7 @@
 static double sgn(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
 
 /* ---- thermal: the wall has a temperature of its own ---- */
-static void thermal_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void thermal_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     if (!(q[0] > 0.0))
         return;
@@ -32,7 +32,7 @@ const plant_fx_ops truth_thermal_ops = {.stage = PLANT_FX_STAGE_GAS, .uses = PLA
                                         .rhs = thermal_rhs};
 
 /* ---- area: piecewise linear over knots y_ref + (-2..2) * 20 mm, flat outside ---- */
-static void area_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void area_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     double u = (x[PLANT_X_Y] - f->y_ref_m) / 0.020 + 2.0, s;
@@ -60,7 +60,7 @@ static double lugre_g(const double *q, double v)
 /* dz/dt = v - s0 |v| z / g(v), F = s0 z + s1 dz/dt (opposes motion). The
  * bristle state is stiff at speed (s0 |v| / g up to thousands per second), so
  * it is held within an RK4 step and advanced exactly after it. */
-static void friction_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void friction_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     const double vel = x[PLANT_X_VEL];
@@ -88,7 +88,7 @@ const plant_fx_ops truth_friction_ops = {.stage = PLANT_FX_STAGE_FORCE, .uses = 
 
 /* ---- valve_dynamics: opening fractions u follow the command with first-order
  * lags; Cd falls linearly with (1 - Pd/Pu) (slope q2); outflows scaled by q3 ---- */
-static void valve_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void valve_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     const plant *pl = &f->pl;
     const plant_params *p = &pl->p;
@@ -118,7 +118,7 @@ static void line_init(plant_fx *f, const double *q)
     f->xe[PLANT_FX_XE_AUX] = f->pl.p.init_p_pipe_pa; /* tube pressure */
 }
 
-static void line_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void line_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     const plant *pl = &f->pl;
     double m_line = q[1] * (x[PLANT_NX + PLANT_FX_XE_AUX] - x[PLANT_X_P_PIPE]);
@@ -131,7 +131,7 @@ const plant_fx_ops truth_line_delay_ops = {.stage = PLANT_FX_STAGE_VOLUME, .uses
                                            .rhs = line_rhs};
 
 /* ---- leak: laminar capillary ---- */
-static void leak_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void leak_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     const plant *pl = &f->pl;

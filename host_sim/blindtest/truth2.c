@@ -67,7 +67,7 @@ static void spring_energy(const plant_fx *f, const double *x, double *dx, double
 
 /* thermal_wall: q = tau_gas_s, wall_ratio, tau_wall_s. The wall has its own
  * heat capacity (wall_ratio times the gas's) and cools to ambient slowly. */
-static void wall_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void wall_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     double t2 = x[PLANT_NX + PLANT_FX_XE_T2], tw = x[PLANT_NX + PLANT_FX_XE_TW];
     double ta = f->pl.p.temperature_k;
@@ -89,7 +89,7 @@ const plant_fx_ops truth2_thermal_wall_ops = {
  * (polytropic compression with exponent n_c from ambient to P1), the pipe
  * removes a fraction `cooling` of that excess, the spring gas exchanges heat
  * with a wall held at ambient. */
-static void hot_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void hot_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     const plant_params *p = &f->pl.p;
     double ratio = fmax(x[PLANT_X_P_PIPE] / p->ambient_pa, 1.0);
@@ -124,7 +124,7 @@ static void area_scale(const plant_fx *f, const double *x, double *dx, double s)
 
 /* area_sigmoid: q = amp, centre_m (from the start height), width_m: the lobe
  * rolls onto another piston contour over the travel (a smooth step). */
-static void sigmoid_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void sigmoid_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     area_scale(f, x, dx, 1.0 + q[0] * tanh((x[PLANT_X_Y] - f->y_ref_m - q[1]) / q[2]));
@@ -141,7 +141,7 @@ static void lobe_init(plant_fx *f, const double *q)
     f->xe[T2_AUX] = f->pl.x[PLANT_X_P_SPRING];
 }
 
-static void lobe_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void lobe_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     double dy_in = (x[PLANT_X_Y] - f->y_ref_m) / PLANT_M_PER_IN;
@@ -159,7 +159,7 @@ const plant_fx_ops truth2_area_lobe_ops = {
 /* friction_stick: q = f_static_n, kinetic_ratio, v_stick (Karnopp): inside
  * the stick band the platform holds until the other forces exceed the static
  * friction; sliding, a kinetic friction opposes the motion. */
-static void stick_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void stick_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     const plant *pl = &f->pl;
@@ -192,7 +192,7 @@ static double seal_coulomb(const plant_fx *f, const double *q, double p2)
     return q[1] + q[2] * fmax(p2 - f->pl.p.ambient_pa, 0.0);
 }
 
-static void seal_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void seal_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     double vel = x[PLANT_X_VEL];
@@ -222,7 +222,7 @@ static void valves_open(plant_fx *f, const double *q, plant_inputs *eff)
     eff->vent_valve = true;
 }
 
-static void scale_valve_flows(const plant_fx *f, const double *x, double *dx, const plant_flows *fl, double fs,
+static void scale_valve_flows(const plant_fx *f, const double *x, double *dx, plant_flows *fl, double fs,
                               double fv)
 {
     plant_fx_replace_flows(&f->pl, x, dx, fl, fl->compressor, fs * fl->spring_valve, fv * fl->vent_valve);
@@ -241,7 +241,7 @@ static double lag_tau(const double *q, bool cmd, double frac)
     return (cmd ? 1.0 : 0.0) > frac ? q[0] : q[1];
 }
 
-static void vlag_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void vlag_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     double fr[2];
     for (int i = 0; i < 2; i++) {
@@ -295,7 +295,7 @@ static void dead_inputs(plant_fx *f, const double *q, plant_inputs *eff)
     valves_open(f, q, eff);
 }
 
-static void dead_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void dead_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     double fr[2];
     for (int i = 0; i < 2; i++) {
@@ -373,7 +373,7 @@ static void seg_init(plant_fx *f, const double *q)
     f->xe[T2_AUX] = f->xe[T2_AUX2] = f->pl.x[PLANT_X_P_PIPE];
 }
 
-static void seg_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void seg_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     const plant *pl = &f->pl;
     double vseg = pl->p.pipe_volume_m3 * q[1] / T2_SEGMENTS, cda = bore_cda(q[0]);
@@ -414,7 +414,7 @@ static void hose_init(plant_fx *f, const double *q)
     f->xe[T2_AUX] = f->pl.x[PLANT_X_P_SPRING];
 }
 
-static void hose_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void hose_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     const plant *pl = &f->pl;
     double ph = x[PLANT_NX + T2_AUX], zrt = pl->zn * pl->rt;
@@ -458,7 +458,7 @@ static double compressor_flow(const plant *pl)
     return p1 * q * pl->inv_rt;
 }
 
-static void transport_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void transport_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)x;
     const plant *pl = &f->pl;
@@ -495,7 +495,7 @@ static void spring_leak(const plant_fx *f, const double *x, double *dx, double m
 
 /* leak_orifice: q = diameter_m (Cd 0.6): a hole in the bead or a fitting,
  * choked above the critical ratio, subsonic below (eq. 8/9). */
-static void lorifice_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void lorifice_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     double cda = 0.6 * T2_PI / 4.0 * q[0] * q[0];
@@ -507,7 +507,7 @@ const plant_fx_ops truth2_leak_orifice_ops = {
 
 /* leak_porous: q = k (kg/(s Pa^2)): seepage through the rubber and its cords,
  * isothermal Darcy flow of a gas: m = k (P2^2 - Pa^2), never choked. */
-static void lporous_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void lporous_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     double pa = f->pl.p.ambient_pa, p2 = x[PLANT_X_P_SPRING];
@@ -570,7 +570,7 @@ const plant_fx_ops truth2_sensor_drift_ops = {
 /* unknown_clearance: q = clearance: the compressor's clearance volume
  * re-expands, its volumetric efficiency 1 - c ((P1/Pa)^(1/1.3) - 1) falls
  * with the pressure ratio. */
-static void clearance_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void clearance_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     const plant *pl = &f->pl;
     double ratio = fmax(x[PLANT_X_P_PIPE] / pl->p.ambient_pa, 1.0);
@@ -582,7 +582,7 @@ const plant_fx_ops truth2_unknown_clearance_ops = {.stage = PLANT_FX_STAGE_FLOW,
 
 /* unknown_stiffness: q = k_n_per_m: a linkage or bump stop in parallel with
  * the spring pulls the platform back to the start height. */
-static void stiff_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void stiff_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     dx[PLANT_X_VEL] -= q[0] * (x[PLANT_X_Y] - f->y_ref_m) * f->pl.inv_mass;
@@ -600,7 +600,7 @@ static void creep_init(plant_fx *f, const double *q)
     f->xe[T2_AUX2] = f->pl.x[PLANT_X_P_SPRING];
 }
 
-static void creep_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void creep_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     double vc = x[PLANT_NX + T2_AUX];

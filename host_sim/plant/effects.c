@@ -63,6 +63,7 @@ int plant_fx_init_models(plant_fx *f, const plant_params *p, int n, const plant_
     f->y_ref_m = p->init_height_m;
     f->xe[PLANT_FX_XE_T2] = f->xe[PLANT_FX_XE_T1] = f->xe[PLANT_FX_XE_TW] = p->temperature_k;
     f->pending_s[0] = f->pending_s[1] = -1.0;
+    f->open_frac[0] = f->open_frac[1] = 1.0; /* open when open, unless a valve model says less */
     for (int i = 0; i < f->nmodels; i++)
         if (f->model[i]->ops->init)
             f->model[i]->ops->init(f, f->q[i]);
@@ -174,12 +175,15 @@ double plant_fx_two_way(const plant *pl, double cda_fwd, double cda_back, double
     return pa > pb ? plant_orifice_flow(pl, cda_fwd, pa, pb) : -plant_orifice_flow(pl, cda_back, pb, pa);
 }
 
-void plant_fx_replace_flows(const plant *pl, const double *x, double *dx, const plant_flows *fl, double m_c,
+void plant_fx_replace_flows(const plant *pl, const double *x, double *dx, plant_flows *fl, double m_c,
                             double m_s, double m_v)
 {
     const double zn = pl->zn, rt = pl->rt, v1 = pl->p.pipe_volume_m3, v2 = x[PLANT_X_V2];
     dx[PLANT_X_P_PIPE] += zn * rt * ((m_c - fl->compressor) - (m_s - fl->spring_valve) - (m_v - fl->vent_valve)) / v1;
     dx[PLANT_X_P_SPRING] += zn * rt * (m_s - fl->spring_valve) / v2;
+    fl->compressor = m_c;
+    fl->spring_valve = m_s;
+    fl->vent_valve = m_v;
 }
 
 void plant_fx_thermal_balance(const plant_fx *f, const double *x, double *dx, const plant_flows *fl, double tau,

@@ -46,7 +46,7 @@ enum {
     PLANT_FX_USES_Z = 1 << 2,       /* xe Z */
     PLANT_FX_USES_AUX = 1 << 3,     /* xe AUX, AUX + 1 */
     PLANT_FX_USES_VALVE_X = 1 << 4, /* xe VALVE, VALVE + 1 */
-    PLANT_FX_USES_VALVE_MEM = 1 << 5, /* eff[], pending_s[], open_frac[]: delayed valve states */
+    PLANT_FX_USES_VALVE_MEM = 1 << 5, /* eff[], pending_s[], open_frac[], opening[]: delayed valve states */
     PLANT_FX_USES_DELAY = 1 << 6,   /* mc_buf: the compressor flow's delay line */
     PLANT_FX_USES_SENS = 1 << 7     /* sens[][]: the transducer filters, and what they report */
 };
@@ -68,8 +68,9 @@ typedef struct {
     /* commanded -> effective inputs, at the plant's current time */
     void (*inputs)(plant_fx *f, const double *q, plant_inputs *effective);
     /* corrections to dx (plant_derivatives()'s, with the models before this one's
-     * corrections; fl: the nominal flows) at state x (plant + extra) */
-    void (*rhs)(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl);
+     * corrections) at state x (plant + extra); fl: the flows as the models before
+     * this one left them (the nominal ones, unless plant_fx_replace_flows changed them) */
+    void (*rhs)(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl);
     /* after each RK4 step: vel0 the velocity at its start */
     void (*after_step)(plant_fx *f, const double *q, double *x, double vel0, double h);
     /* after each tick of dt_s: memories and filters; raw: what ideal
@@ -110,6 +111,12 @@ struct plant_fx {
     bool cmd[2], eff[2];
     double pending_s[2];
     double open_frac[2];
+    /* a valve's opening as a lag (valve_dynamics' opening_tau_s): the opening
+     * at the tick's start, the effective state before the tick's switch and the
+     * switch's offset into the tick (s; -1: no switch in it) */
+    double opening[2];
+    bool eff_before[2];
+    double switch_in_s[2];
     double tick_s;
     /* transport delay of the compressor flow */
     double mc_buf[PLANT_FX_DELAY_TICKS];
@@ -152,8 +159,10 @@ int plant_config_effects_check(const plant_config *cfg, char *msg, size_t len);
 
 /* ISO 6358 flow when b > 0, else eq. 8/9: mass flow a -> b (+), Cd A per direction. */
 double plant_fx_two_way(const plant *pl, double cda_fwd, double cda_back, double pa, double pb, double b);
-/* The pressure equations of plant.c with new compressor/spring/vent flows in place of fl's. */
-void plant_fx_replace_flows(const plant *pl, const double *x, double *dx, const plant_flows *fl, double m_c,
+/* The pressure equations of plant.c with new compressor/spring/vent flows in
+ * place of fl's; fl becomes them, so that a later model replaces what this one
+ * left (a hose behind a lagging valve), not the nominal flows. */
+void plant_fx_replace_flows(const plant *pl, const double *x, double *dx, plant_flows *fl, double m_c,
                             double m_s, double m_v);
 /* Energy balance of the gas in spring and pipe with a wall at tw and time constant tau. */
 void plant_fx_thermal_balance(const plant_fx *f, const double *x, double *dx, const plant_flows *fl, double tau,

@@ -7,7 +7,8 @@
  *   area            A = A_nom (1 + a0 + a1 d + a2 d^2), d = y - y_ref held within +-50 mm:
  *                   a1 rel/m, a2 rel/m^2, a0 relative
  *   friction        Coulomb N, Stribeck N, Stribeck velocity m/s
- *   valve_dynamics  open delay s, close delay s, ISO 6358 b (0 = eq. 8)
+ *   valve_dynamics  open delay s, close delay s, ISO 6358 b (0 = eq. 8); extended by the
+ *                   opening's lag after the delay s (0: the valve opens and shuts at once)
  *   line_delay      transport delay s, junction volume change m^3, tube volume behind a laminar
  *                   resistance m^3, that resistance as the tube's time constant s; hose volume
  *                   between spring valve and spring m^3, its fitting's Cd A relative to the
@@ -25,7 +26,7 @@ static double sgn(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
  * by a wall that warms (its heat capacity: the gas's over the wall's, q1; its
  * own time constant to the room, q2) and a compressor that delivers warm air
  * (q3: its outlet above ambient, relative) ---- */
-static void thermal_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void thermal_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     if (!(q[0] > 0.0)) /* 0: the fixed polytropic exponent */
         return;
@@ -39,7 +40,7 @@ const plant_fx_ops fx_thermal_ops = {.stage = PLANT_FX_STAGE_GAS, .uses = PLANT_
                                      .rhs = thermal_rhs};
 
 /* ---- area: a quadratic in height, flat past +-50 mm (the rolling lobe) ---- */
-static void area_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void area_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     double d = fmax(-0.05, fmin(0.05, x[PLANT_X_Y] - f->y_ref_m));
@@ -48,7 +49,7 @@ static void area_rhs(const plant_fx *f, const double *q, const double *x, double
 const plant_fx_ops fx_area_ops = {.stage = PLANT_FX_STAGE_GEOMETRY, .rhs = area_rhs};
 
 /* ---- friction: Coulomb + Stribeck; below 0.1 mm/s the guide sticks up to Fc + Fs ---- */
-static void friction_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void friction_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     const plant *pl = &f->pl;
@@ -66,14 +67,39 @@ static void friction_rhs(const plant_fx *f, const double *q, const double *x, do
 }
 const plant_fx_ops fx_friction_ops = {.stage = PLANT_FX_STAGE_FORCE, .rhs = friction_rhs};
 
-/* ---- valve_dynamics: pure opening/closing delays, ISO 6358 flow ---- */
+/* ---- valve_dynamics: opening/closing delays, extended by an opening that
+ * follows the delayed command as a first-order lag (q3), ISO 6358 flow ---- */
+
+/* First-order lag over a span of len_s from the opening *o toward g (time
+ * constant tau_s > 0): the mean opening over the span; *o becomes its end. */
+static double lag_span(double *o, double g, double len_s, double tau_s)
+{
+    if (!(len_s > 0.0))
+        return *o;
+    double a = exp(-len_s / tau_s), o0 = *o;
+    *o = g + (o0 - g) * a;
+    return g + (o0 - g) * tau_s / len_s * (1.0 - a);
+}
+
+/* The lagged valve's mean opening over a tick of dt_s, the switch (from
+ * eff_before to eff) switch_in_s into it; *o advances to the tick's end. A
+ * fully shut or open valve is snapped there (exp never gets there itself). */
+static double lagged_opening(double *o, bool before, bool now, double switch_in_s, double dt_s, double tau_s)
+{
+    double first = switch_in_s < 0.0 ? dt_s : fmin(dt_s, switch_in_s);
+    double m1 = lag_span(o, before ? 1.0 : 0.0, first, tau_s);
+    double m2 = lag_span(o, now ? 1.0 : 0.0, dt_s - first, tau_s);
+    if (fabs(*o - (now ? 1.0 : 0.0)) < 1e-6)
+        *o = now ? 1.0 : 0.0;
+    return dt_s > 0.0 ? (m1 * first + m2 * (dt_s - first)) / dt_s : *o;
+}
 
 /* The valve's open share of the coming tick after its opening/closing delay.
  * A switch due inside the tick opens the valve for the share of the tick after
  * it (the flow scaled by that share): the plant is then a continuous function
  * of the delays, not a staircase of 10 ms steps a least-squares fit cannot
  * climb. Without a tick length yet (the first tick) the switch waits for the
- * tick boundary. */
+ * tick boundary. With a lag, the share is the tick's mean opening. */
 static double delayed_valve(plant_fx *f, const double *q, int i, bool cmd)
 {
     double open_d = q[0], close_d = q[1], t = f->pl.t_s, dt = f->tick_s;
@@ -82,11 +108,18 @@ static double delayed_valve(plant_fx *f, const double *q, int i, bool cmd)
         f->pending_s[i] = cmd != f->eff[i] ? t + (cmd ? open_d : close_d) : -1.0;
     }
     double frac = f->eff[i] ? 1.0 : 0.0;
+    f->eff_before[i] = f->eff[i];
+    f->switch_in_s[i] = -1.0;
     if (f->pending_s[i] >= 0.0 && t + dt > f->pending_s[i] - 1e-9) {
         double after = dt > 0.0 && f->pending_s[i] > t ? fmax(0.0, (t + dt - f->pending_s[i]) / dt) : 1.0;
         f->eff[i] = f->cmd[i];
         f->pending_s[i] = -1.0;
+        f->switch_in_s[i] = (1.0 - after) * dt;
         frac = f->eff[i] ? after : 1.0 - after;
+    }
+    if (q[3] > 0.0) {
+        double o = f->opening[i]; /* the tick's mean; after_tick advances the state */
+        frac = lagged_opening(&o, f->eff_before[i], f->eff[i], f->switch_in_s[i], dt, q[3]);
     }
     return frac;
 }
@@ -99,7 +132,19 @@ static void valve_inputs(plant_fx *f, const double *q, plant_inputs *eff)
     eff->vent_valve = f->open_frac[1] > 0.0;
 }
 
-static void valve_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+/* The lagged openings move over the tick as it was (a log's ticks vary). */
+static void valve_after_tick(plant_fx *f, const double *q, const double raw[4], double dt_s, bool first)
+{
+    (void)raw;
+    (void)first;
+    for (int i = 0; i < 2; i++)
+        if (q[3] > 0.0)
+            (void)lagged_opening(&f->opening[i], f->eff_before[i], f->eff[i], f->switch_in_s[i], dt_s, q[3]);
+        else
+            f->opening[i] = f->eff[i] ? 1.0 : 0.0;
+}
+
+static void valve_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     const plant *pl = &f->pl;
     const plant_params *p = &pl->p;
@@ -116,7 +161,8 @@ static void valve_rhs(const plant_fx *f, const double *q, const double *x, doubl
     plant_fx_replace_flows(pl, x, dx, fl, fl->compressor, m_s * f->open_frac[0], m_v * f->open_frac[1]);
 }
 const plant_fx_ops fx_valve_dynamics_ops = {.stage = PLANT_FX_STAGE_FLOW, .uses = PLANT_FX_USES_VALVE_MEM,
-                                            .inputs = valve_inputs, .rhs = valve_rhs};
+                                            .inputs = valve_inputs, .rhs = valve_rhs,
+                                            .after_tick = valve_after_tick};
 
 /* ---- line_delay: the compressor's flow reaches the junction after the
  * transport delay q0, through a tube of volume q2 behind a laminar resistance
@@ -154,15 +200,17 @@ static void line_hose_flows(const plant_fx *f, const double *q, const double *x,
     const plant *pl = &f->pl;
     const plant_params *p = &pl->p;
     double vh = line_hose_m3(q), ph = x[PLANT_NX + LINE_HOSE], a = pl->spring_valve_area_m2;
-    *m_valve = pl->in.spring_valve ? plant_fx_two_way(pl, p->spring_valve_cd_in * a, p->spring_valve_cd_out * a,
-                                                      x[PLANT_X_P_PIPE], ph, 0.0)
+    /* the valve's open share: a valve model's, else whole */
+    *m_valve = pl->in.spring_valve ? f->open_frac[0] * plant_fx_two_way(pl, p->spring_valve_cd_in * a,
+                                                                         p->spring_valve_cd_out * a,
+                                                                         x[PLANT_X_P_PIPE], ph, 0.0)
                                    : 0.0;
     double cda = q[5] * p->spring_valve_cd_in * a;
     *m_fit = plant_fx_two_way(pl, cda, cda, ph, x[PLANT_X_P_SPRING], 0.0);
     dx[PLANT_NX + LINE_HOSE] = pl->zn * pl->rt * (*m_valve - *m_fit) / vh;
 }
 
-static void line_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void line_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     const plant *pl = &f->pl;
     double m_c = q[0] > 0.0 ? f->mc_delayed : fl->compressor;
@@ -231,7 +279,7 @@ const plant_fx_ops fx_line_delay_ops = {.stage = PLANT_FX_STAGE_VOLUME, .uses = 
                                         .sensed = line_sensed, .substeps = line_substeps};
 
 /* ---- leak: an orifice (eq. 8/9) spring -> ambient ---- */
-static void leak_rhs(const plant_fx *f, const double *q, const double *x, double *dx, const plant_flows *fl)
+static void leak_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     const plant *pl = &f->pl;
