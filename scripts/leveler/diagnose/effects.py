@@ -31,6 +31,7 @@ class Param:
     log: bool = False   # fit in log space (time constants, areas spanning decades)
     doc: str = ""
     extends: bool = False   # extends the base model (nominal: the base), fitted after it
+    knee: float = 0.0   # > 0: from lo = 0, linear below the knee and logarithmic above it
 
 
 @dataclass(frozen=True)
@@ -54,7 +55,8 @@ def load(path=CATALOGUE):
         doc = json.load(fh)
     return tuple(Effect(e["name"], e["id"],
                         tuple(Param(p["name"], p["fit"][0], p["fit"][1], p["nominal"], p.get("log", False),
-                                    p.get("doc", ""), p.get("extends", False)) for p in e["params"]),
+                                    p.get("doc", ""), p.get("extends", False), p.get("knee", 0.0))
+                              for p in e["params"]),
                         e["doc"])
                  for e in doc["effects"])
 
@@ -101,19 +103,33 @@ def get(name):
                   " and ".join(e.doc for e in singles))
 
 
-# The fit's unit box: [0, 1] per parameter, log-mapped where the range spans decades.
+# The fit's unit box: [0, 1] per parameter, log-mapped where the range spans decades
+# (from a knee where it starts at 0).
+def _knee_span(p):
+    return np.log1p((p.hi - p.lo) / p.knee)
+
+
 def to_unit(effect, params):
     u = []
     for p in effect.params:
         v = min(max(params[p.name], p.lo), p.hi)
-        u.append((np.log(v) - np.log(p.lo)) / (np.log(p.hi) - np.log(p.lo)) if p.log
-                 else (v - p.lo) / (p.hi - p.lo))
+        if p.knee > 0.0:
+            u.append(np.log1p((v - p.lo) / p.knee) / _knee_span(p))
+        elif p.log:
+            u.append((np.log(v) - np.log(p.lo)) / (np.log(p.hi) - np.log(p.lo)))
+        else:
+            u.append((v - p.lo) / (p.hi - p.lo))
     return np.array(u)
 
 
 def from_unit(effect, u):
     out = {}
     for p, x in zip(effect.params, np.clip(u, 0.0, 1.0)):
-        out[p.name] = float(np.exp(np.log(p.lo) + x * (np.log(p.hi) - np.log(p.lo))) if p.log
-                            else p.lo + x * (p.hi - p.lo))
+        if p.knee > 0.0:   # times that span decades down to none at all (a valve's: 1 ms to 1 s, or 0)
+            v = min(p.lo + p.knee * np.expm1(x * _knee_span(p)), p.hi)
+        elif p.log:
+            v = np.exp(np.log(p.lo) + x * (np.log(p.hi) - np.log(p.lo)))
+        else:
+            v = p.lo + x * (p.hi - p.lo)
+        out[p.name] = float(v)
     return out
