@@ -151,3 +151,25 @@ def test_ctlbench_scores_a_rig_of_ones_own(tmp_path):
     on = [r["compressor_on_s"] for r in leaky["rest-leaky-noise2"]["runs"] if r["algorithm"] != 2]
     base = [r["compressor_on_s"] for r in own["rest-900lb-noise2"]["runs"] if r["algorithm"] != 2]
     assert all(a > b + 1.0 for a, b in zip(on, base)), (on, base)
+
+
+def test_the_fits_unit_box_maps_every_parameter_both_ways():
+    """Every fitted parameter goes to the unit box and back unchanged, its fit bounds
+    at 0 and 1; a parameter with a knee is 0 (the nominal plant) at 0 and spaced
+    in ratios well above the knee: 80 to 250 ms takes as much of the box as 250 to 800 ms."""
+    for e in fx.EFFECTS:
+        for p in e.params:
+            one = fx.Effect(e.name, e.effect_id, (p,), e.doc)
+            assert fx.from_unit(one, [0.0])[p.name] == pytest.approx(p.lo, rel=1e-12, abs=0)
+            assert fx.from_unit(one, [1.0])[p.name] == pytest.approx(p.hi, rel=1e-12)
+            for u in np.linspace(0.0, 1.0, 11):
+                v = fx.from_unit(one, [u])[p.name]
+                assert fx.to_unit(one, {p.name: v})[0] == pytest.approx(u, abs=1e-12), (e.name, p.name, u)
+    knees = [(e, p) for e in fx.EFFECTS for p in e.params if p.knee > 0]
+    assert knees, "no parameter fitted with a knee"
+    for e, p in knees:
+        one = fx.Effect(e.name, e.effect_id, (p,), e.doc)
+        assert fx.from_unit(one, [0.0])[p.name] == 0.0 == p.nominal
+        if p.hi >= 0.8:
+            u = {v: fx.to_unit(one, {p.name: v})[0] for v in (0.08, 0.25, 0.8)}
+            assert u[0.25] - u[0.08] == pytest.approx(u[0.8] - u[0.25], rel=0.1), (e.name, p.name)
