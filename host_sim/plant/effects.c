@@ -102,6 +102,9 @@ static void rk4_step(plant_fx *f, double h)
     double x[N];
     memcpy(x, pl->x, sizeof pl->x);
     memcpy(x + PLANT_NX, f->xe, sizeof f->xe);
+    for (int i = 0; i < f->nmodels; i++)
+        if (f->model[i]->ops->before_step)
+            f->model[i]->ops->before_step(f, f->q[i], x, h);
     plant_rk4_step(pl, x, N, fx_rhs, f, h);
     for (int i = 0; i < f->nmodels; i++)
         if (f->model[i]->ops->after_step)

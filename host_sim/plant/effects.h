@@ -71,6 +71,8 @@ typedef struct {
      * corrections) at state x (plant + extra); fl: the flows as the models before
      * this one left them (the nominal ones, unless plant_fx_replace_flows changed them) */
     void (*rhs)(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl);
+    /* before each RK4 step of h, on the state x (plant + extra) */
+    void (*before_step)(plant_fx *f, const double *q, double *x, double h);
     /* after each RK4 step: vel0 the velocity at its start */
     void (*after_step)(plant_fx *f, const double *q, double *x, double vel0, double h);
     /* after each tick of dt_s: memories and filters; raw: what ideal

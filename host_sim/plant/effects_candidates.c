@@ -214,11 +214,9 @@ static void line_rhs(const plant_fx *f, const double *q, const double *x, double
 {
     const plant *pl = &f->pl;
     double m_c = q[0] > 0.0 ? f->mc_delayed : fl->compressor;
-    if (q[2] > 0.0) {
-        double tau = fmax(q[3], 1e-3);
-        double m_line = q[2] / (pl->zn * pl->rt * tau) * (x[PLANT_NX + LINE_TUBE] - x[PLANT_X_P_PIPE]);
-        dx[PLANT_NX + LINE_TUBE] = pl->zn * pl->rt * (m_c - m_line) / q[2];
-        m_c = m_line;
+    if (q[2] > 0.0) { /* the tube takes the compressor's air; line_after_step passes it on */
+        dx[PLANT_NX + LINE_TUBE] = pl->zn * pl->rt * m_c / q[2];
+        m_c = 0.0;
     }
     double m_s = fl->spring_valve, m_fit = fl->spring_valve;
     if (line_hose_m3(q) > 0.0)
@@ -228,25 +226,43 @@ static void line_rhs(const plant_fx *f, const double *q, const double *x, double
     dx[PLANT_X_P_PIPE] *= pl->p.pipe_volume_m3 / line_junction_m3(f, q);
 }
 
-/* Substeps that keep RK4 stable: the tube's fastest mode decays at
- * (1 + Vt/Vj)/tau, kept below 1.5 per substep; a hose smaller than the pipe
- * (which the config's substeps keep accurate) behind a wide fitting needs more. */
+/* The tube's exchange with the junction through its laminar resistance, exact
+ * over a span of h: the pressure difference D decays as exp(-(1 + Vt/Vj) h /
+ * tau), and what leaves the tube (Vt dPt) enters the junction (Vj dP1). Strang
+ * splitting: half before and half after each RK4 step of the other flows, so
+ * exact for any tau (a fast resistance needed up to 400 RK4 substeps a tick)
+ * and second order in the step. */
+static void line_exchange(const plant_fx *f, const double *q, double *x, double h)
+{
+    if (!(q[2] > 0.0))
+        return;
+    double vt = q[2], vj = line_junction_m3(f, q), tau = fmax(q[3], 1e-3);
+    double moved = -(x[PLANT_NX + LINE_TUBE] - x[PLANT_X_P_PIPE]) * expm1(-(1.0 + vt / vj) * h / tau);
+    x[PLANT_NX + LINE_TUBE] -= moved * vj / (vj + vt);
+    x[PLANT_X_P_PIPE] += moved * vt / (vj + vt);
+}
+
+static void line_before_step(plant_fx *f, const double *q, double *x, double h) { line_exchange(f, q, x, 0.5 * h); }
+
+static void line_after_step(plant_fx *f, const double *q, double *x, double vel0, double h)
+{
+    (void)vel0;
+    line_exchange(f, q, x, 0.5 * h);
+}
+
+/* Substeps that keep RK4 accurate: a hose smaller than the pipe (which the
+ * config's substeps keep accurate) behind a wide fitting needs more. */
 static int line_substeps(const plant_fx *f, const double *q, double dt_s, int substeps)
 {
-    int need = substeps;
-    if (q[2] > 0.0) {
-        double rate = (1.0 + q[2] / line_junction_m3(f, q)) / fmax(q[3], 1e-3);
-        need = (int)ceil(dt_s * rate / 1.5);
-    }
+    (void)dt_s;
     double vh = line_hose_m3(q);
-    if (vh > 0.0) {
-        /* measured: the final state to 10 um needs about this many (a 1e-5 m^3
-         * hose behind a fitting 5x the valve's: 80; 1e-4 m^3, 1x: the config's 2) */
-        double scale = fmax(1.0, 0.5 * fmax(1.0, q[5]) * f->pl.p.pipe_volume_m3 / vh);
-        int hose = (int)ceil(substeps * scale);
-        need = hose > need ? hose : need;
-    }
-    return need > substeps ? (need < 400 ? need : 400) : substeps;
+    if (!(vh > 0.0))
+        return substeps;
+    /* measured: the final state to 10 um needs about this many (a 1e-5 m^3
+     * hose behind a fitting 5x the valve's: 80; 1e-4 m^3, 1x: the config's 2) */
+    double scale = fmax(1.0, 0.5 * fmax(1.0, q[5]) * f->pl.p.pipe_volume_m3 / vh);
+    int hose = (int)ceil(substeps * scale);
+    return hose > substeps ? (hose < 400 ? hose : 400) : substeps;
 }
 
 /* The compressor flow of this tick, read back delay/dt ticks later. */
@@ -275,7 +291,9 @@ static void line_sensed(const plant_fx *f, const double *q, double out[4])
         out[2] += q[7] * (f->xe[LINE_TUBE] - f->pl.x[PLANT_X_P_PIPE]);
 }
 const plant_fx_ops fx_line_delay_ops = {.stage = PLANT_FX_STAGE_VOLUME, .uses = PLANT_FX_USES_AUX | PLANT_FX_USES_DELAY,
-                                        .init = line_init, .rhs = line_rhs, .after_tick = line_after_tick,
+                                        .init = line_init, .rhs = line_rhs, .before_step = line_before_step,
+                                        .after_step = line_after_step,
+                                        .after_tick = line_after_tick,
                                         .sensed = line_sensed, .substeps = line_substeps};
 
 /* ---- leak: an orifice (eq. 8/9) spring -> ambient ---- */

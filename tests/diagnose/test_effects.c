@@ -135,24 +135,42 @@ static void test_off_is_the_nominal_plant(void **state)
     }
 }
 
+/* cycle() with this many RK4 substeps a tick. */
+static void cycle_substeps(plant_fx *f, int substeps)
+{
+    for (int k = 0; k < 3000; k++) {
+        double t = k * 0.01;
+        plant_inputs in = {t < 8.0, t < 8.0 || (t >= 15.0 && t < 21.0), t >= 15.0 && t < 21.0, false,
+                           t < 5.0 ? 4003.4 : 4893.0};
+        plant_fx_set_inputs(f, &in);
+        plant_fx_advance(f, 0.01, substeps);
+    }
+}
+
 /* The line candidate's tube behind a resistance and the truth generator's tube
  * behind a laminar conductance are two codings of one physics: the same tube
- * (volume V, conductance G = V / (Z n R T tau)) must give the same plant. */
+ * (volume V, conductance G = V / (Z n R T tau)) must give the same plant. The
+ * truth's RK4 at 400 substeps a tick is the reference; the candidate steps
+ * the tube's exchange exactly (split from the config's 2 RK4 substeps) and
+ * ends the cycle within 50 Pa of P1, 10 Pa of P2 and 5 um (measured: 22 Pa,
+ * 2 um), however fast the resistance (tau 2 ms: RK4 needed 400 substeps). */
 static void test_line_tube_matches_the_truth_tube(void **state)
 {
     (void)state;
     plant_params p = thesis();
-    const double vol = 2e-4, g = 1e-8;
-    static plant_fx cand, tr;
-    const double tp[PLANT_FX_MAX_PARAMS] = {vol, g, 0.0};
-    assert_int_equal(plant_fx_init(&tr, &p, truth(LINE_DELAY), tp), 0);
-    const double cp[PLANT_FX_MAX_PARAMS] = {0.0, 0.0, vol, vol / (tr.pl.zn * tr.pl.rt * g)};
-    assert_int_equal(plant_fx_init(&cand, &p, candidate(LINE_DELAY), cp), 0);
-    cycle(&cand);
-    cycle(&tr);
-    assert_true(fabs(cand.pl.x[PLANT_X_P_PIPE] - tr.pl.x[PLANT_X_P_PIPE]) < 1e-6 * tr.pl.x[PLANT_X_P_PIPE]);
-    assert_true(fabs(cand.pl.x[PLANT_X_P_SPRING] - tr.pl.x[PLANT_X_P_SPRING]) < 1e-6 * tr.pl.x[PLANT_X_P_SPRING]);
-    assert_true(fabs(cand.pl.x[PLANT_X_Y] - tr.pl.x[PLANT_X_Y]) < 1e-9);
+    static const double tube[3][2] = {{2e-4, 1e-8}, {2e-4, 1e-6}, {1e-3, 1e-8}}; /* m^3, kg/(s Pa) */
+    for (int i = 0; i < 3; i++) {
+        static plant_fx cand, tr;
+        const double tp[PLANT_FX_MAX_PARAMS] = {tube[i][0], tube[i][1], 0.0};
+        assert_int_equal(plant_fx_init(&tr, &p, truth(LINE_DELAY), tp), 0);
+        const double cp[PLANT_FX_MAX_PARAMS] = {0.0, 0.0, tube[i][0], tube[i][0] / (tr.pl.zn * tr.pl.rt * tube[i][1])};
+        assert_int_equal(plant_fx_init(&cand, &p, candidate(LINE_DELAY), cp), 0);
+        cycle_substeps(&cand, 2);
+        cycle_substeps(&tr, 400);
+        assert_true(fabs(cand.pl.x[PLANT_X_P_PIPE] - tr.pl.x[PLANT_X_P_PIPE]) < 50.0);
+        assert_true(fabs(cand.pl.x[PLANT_X_P_SPRING] - tr.pl.x[PLANT_X_P_SPRING]) < 10.0);
+        assert_true(fabs(cand.pl.x[PLANT_X_Y] - tr.pl.x[PLANT_X_Y]) < 5e-6);
+    }
 }
 
 /* A hose between the spring valve and the spring, behind the spring's fitting.
