@@ -102,9 +102,9 @@ static void valve_rhs(const plant_fx *f, const double *q, const double *x, doubl
     double a = pl->spring_valve_area_m2, av = p->vent_valve_cd * pl->vent_valve_area_m2;
     double cd_scale = 1.0 - q[2] * (1.0 - fmin(p1, p2) / fmax(p1, p2));
     double m_s = us * cd_scale *
-                 plant_fx_two_way(pl, p->spring_valve_cd_in * a, p->spring_valve_cd_out * a * q[3], p1, p2, 0.0);
+                 plant_fx_two_way(pl, p->spring_valve_cd_in * a, p->spring_valve_cd_out * a * q[3], p1, p2);
     double cdv = 1.0 - q[2] * (1.0 - fmin(pa, p1) / fmax(pa, p1));
-    double m_v = uv * cdv * plant_fx_two_way(pl, av * q[3], av, p1, pa, 0.0);
+    double m_v = uv * cdv * plant_fx_two_way(pl, av * q[3], av, p1, pa);
     plant_fx_replace_flows(pl, x, dx, fl, fl->compressor, m_s, m_v);
 }
 const plant_fx_ops truth_valve_dynamics_ops = {.stage = PLANT_FX_STAGE_FLOW, .uses = PLANT_FX_USES_VALVE_X,

@@ -158,23 +158,8 @@ void plant_fx_sensed(const plant_fx *f, double out[4])
 
 /* ---- building blocks ---- */
 
-/* ISO 6358: m = m_choked(pu) * phi(r), phi = sqrt(1 - ((r - b)/(1 - b))^2) above b. */
-static double iso6358_flow(const plant *pl, double cd_area, double pu, double pd, double b)
+double plant_fx_two_way(const plant *pl, double cda_fwd, double cda_back, double pa, double pb)
 {
-    if (pu <= pd)
-        return 0.0;
-    double m_choked = cd_area * pl->flow_choked * pu;
-    double r = pd / pu;
-    if (r <= b)
-        return m_choked;
-    double s = (r - b) / (1.0 - b);
-    return m_choked * sqrt(fmax(0.0, 1.0 - s * s));
-}
-
-double plant_fx_two_way(const plant *pl, double cda_fwd, double cda_back, double pa, double pb, double b)
-{
-    if (b > 0.0)
-        return pa > pb ? iso6358_flow(pl, cda_fwd, pa, pb, b) : -iso6358_flow(pl, cda_back, pb, pa, b);
     return pa > pb ? plant_orifice_flow(pl, cda_fwd, pa, pb) : -plant_orifice_flow(pl, cda_back, pb, pa);
 }
 

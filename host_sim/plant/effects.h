@@ -159,8 +159,8 @@ int plant_config_effects_check(const plant_config *cfg, char *msg, size_t len);
 
 /* ---- building blocks shared by candidate and truth models ---- */
 
-/* ISO 6358 flow when b > 0, else eq. 8/9: mass flow a -> b (+), Cd A per direction. */
-double plant_fx_two_way(const plant *pl, double cda_fwd, double cda_back, double pa, double pb, double b);
+/* Eq. 8/9 both ways: mass flow a -> b (+), Cd A per direction. */
+double plant_fx_two_way(const plant *pl, double cda_fwd, double cda_back, double pa, double pb);
 /* The pressure equations of plant.c with new compressor/spring/vent flows in
  * place of fl's; fl becomes them, so that a later model replaces what this one
  * left (a hose behind a lagging valve), not the nominal flows. */

@@ -7,8 +7,8 @@
  *   area            A = A_nom (1 + a0 + a1 d + a2 d^2), d = y - y_ref held within +-50 mm:
  *                   a1 rel/m, a2 rel/m^2, a0 relative
  *   friction        Coulomb N, Stribeck N, Stribeck velocity m/s
- *   valve_dynamics  open delay s, close delay s, ISO 6358 b (0 = eq. 8); extended by the
- *                   opening's lag after the delay s (0: the valve opens and shuts at once)
+ *   valve_dynamics  open delay s, close delay s, the opening's lag after the delay s (0: the
+ *                   valve opens and shuts at once)
  *   line_delay      transport delay s, junction volume change m^3, tube volume behind a laminar
  *                   resistance m^3, that resistance as the tube's time constant s; hose volume
  *                   between spring valve and spring m^3, its fitting's Cd A relative to the
@@ -67,8 +67,10 @@ static void friction_rhs(const plant_fx *f, const double *q, const double *x, do
 }
 const plant_fx_ops fx_friction_ops = {.stage = PLANT_FX_STAGE_FORCE, .rhs = friction_rhs};
 
-/* ---- valve_dynamics: opening/closing delays, extended by an opening that
- * follows the delayed command as a first-order lag (q3), ISO 6358 flow ---- */
+/* ---- valve_dynamics: opening/closing delays, and an opening that follows the
+ * delayed command as a first-order lag (q2). The flow law and the discharge
+ * coefficients stay the config's: changing either is calibration
+ * (calibrate.py), not a valve effect. ---- */
 
 /* First-order lag over a span of len_s from the opening *o toward g (time
  * constant tau_s > 0): the mean opening over the span; *o becomes its end. */
@@ -117,9 +119,9 @@ static double delayed_valve(plant_fx *f, const double *q, int i, bool cmd)
         f->switch_in_s[i] = (1.0 - after) * dt;
         frac = f->eff[i] ? after : 1.0 - after;
     }
-    if (q[3] > 0.0) {
+    if (q[2] > 0.0) {
         double o = f->opening[i]; /* the tick's mean; after_tick advances the state */
-        frac = lagged_opening(&o, f->eff_before[i], f->eff[i], f->switch_in_s[i], dt, q[3]);
+        frac = lagged_opening(&o, f->eff_before[i], f->eff[i], f->switch_in_s[i], dt, q[2]);
     }
     return frac;
 }
@@ -138,27 +140,17 @@ static void valve_after_tick(plant_fx *f, const double *q, const double raw[4], 
     (void)raw;
     (void)first;
     for (int i = 0; i < 2; i++)
-        if (q[3] > 0.0)
-            (void)lagged_opening(&f->opening[i], f->eff_before[i], f->eff[i], f->switch_in_s[i], dt_s, q[3]);
+        if (q[2] > 0.0)
+            (void)lagged_opening(&f->opening[i], f->eff_before[i], f->eff[i], f->switch_in_s[i], dt_s, q[2]);
         else
             f->opening[i] = f->eff[i] ? 1.0 : 0.0;
 }
 
 static void valve_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
-    const plant *pl = &f->pl;
-    const plant_params *p = &pl->p;
-    double m_s = fl->spring_valve, m_v = fl->vent_valve;
-    /* The discharge coefficients stay the config's: rescaling one is
-     * calibration (calibrate.py), not a valve effect. */
-    if (q[2] > 0.0) {
-        double a = pl->spring_valve_area_m2, av = p->vent_valve_cd * pl->vent_valve_area_m2;
-        m_s = pl->in.spring_valve ? plant_fx_two_way(pl, p->spring_valve_cd_in * a, p->spring_valve_cd_out * a,
-                                                     x[PLANT_X_P_PIPE], x[PLANT_X_P_SPRING], q[2])
-                                  : 0.0;
-        m_v = pl->in.vent_valve ? plant_fx_two_way(pl, av, av, x[PLANT_X_P_PIPE], p->ambient_pa, q[2]) : 0.0;
-    }
-    plant_fx_replace_flows(pl, x, dx, fl, fl->compressor, m_s * f->open_frac[0], m_v * f->open_frac[1]);
+    (void)q;
+    plant_fx_replace_flows(&f->pl, x, dx, fl, fl->compressor, fl->spring_valve * f->open_frac[0],
+                           fl->vent_valve * f->open_frac[1]);
 }
 const plant_fx_ops fx_valve_dynamics_ops = {.stage = PLANT_FX_STAGE_FLOW, .uses = PLANT_FX_USES_VALVE_MEM,
                                             .inputs = valve_inputs, .rhs = valve_rhs,
@@ -203,10 +195,10 @@ static void line_hose_flows(const plant_fx *f, const double *q, const double *x,
     /* the valve's open share: a valve model's, else whole */
     *m_valve = pl->in.spring_valve ? f->open_frac[0] * plant_fx_two_way(pl, p->spring_valve_cd_in * a,
                                                                          p->spring_valve_cd_out * a,
-                                                                         x[PLANT_X_P_PIPE], ph, 0.0)
+                                                                         x[PLANT_X_P_PIPE], ph)
                                    : 0.0;
     double cda = q[5] * p->spring_valve_cd_in * a;
-    *m_fit = plant_fx_two_way(pl, cda, cda, ph, x[PLANT_X_P_SPRING], 0.0);
+    *m_fit = plant_fx_two_way(pl, cda, cda, ph, x[PLANT_X_P_SPRING]);
     dx[PLANT_NX + LINE_HOSE] = pl->zn * pl->rt * (*m_valve - *m_fit) / vh;
 }
 

@@ -91,7 +91,7 @@ def test_the_diagnosis_sees_the_configs_effect_as_its_own(cplant, tmp_path, step
 
 
 def test_an_effect_asked_for_runs_beside_the_configs(cplant, tmp_path, step_run):
-    q = {"open_delay_s": 0.07, "close_delay_s": 0.03, "b_critical": 0.3}
+    q = {"open_delay_s": 0.07, "close_delay_s": 0.03, "opening_tau_s": 0.05}
     cfg = write_config(tmp_path / "vd.ini", {"valve_dynamics": q})
     leak = {p.name: p.hi for p in fx.get("leak").params}
     a = cplant.simulate(cfg, step_run, "leak", leak, REPLAY)

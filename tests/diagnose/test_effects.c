@@ -80,7 +80,7 @@ static void test_every_kind_stays_finite(void **state)
         {false, THERMAL, {5.0}},
         {false, AREA, {2.0, -50.0, 0.03}},
         {false, FRICTION, {100.0, 50.0, 0.005}},
-        {false, VALVE_DYNAMICS, {0.1, 0.2, 0.3, 0.8}},
+        {false, VALVE_DYNAMICS, {0.1, 0.2, 0.3}},
         {false, LINE_DELAY, {0.2, 3e-4}},
         {false, LINE_DELAY, {0.1, -1.5e-4, 1e-3, 0.01}}, /* stiffest corner: a big tube, a fast resistance */
         {false, LINE_DELAY, {0.0, 0.0, 0.0, 0.3, 1e-9, 5.0, 1.0, 0.0}}, /* the smallest hose, a wide fitting */
@@ -119,11 +119,11 @@ static void test_off_is_the_nominal_plant(void **state)
         plant_set_inputs(&ref, &in);
         plant_advance(&ref, 0.01, 10);
     }
-    /* "off" values: thermal tau 0, area 0/0/0, friction 0/0, valve 0/0/b 0/lag 0,
+    /* "off" values: thermal tau 0, area 0/0/0, friction 0/0, valve 0/0/lag 0,
      * line 0/0, leak 0, sensor 0/0/0/0 */
     static const struct { int id; double p[PLANT_FX_MAX_PARAMS]; } off[] = {
         {THERMAL, {0}}, {AREA, {0}}, {FRICTION, {0, 0, 0.005}},
-        {VALVE_DYNAMICS, {0, 0, 0, 0}}, {LINE_DELAY, {0, 0}}, {LEAK, {0}},
+        {VALVE_DYNAMICS, {0, 0, 0}}, {LINE_DELAY, {0, 0}}, {LEAK, {0}},
         {SENSOR_LAG, {0}},
     };
     for (size_t i = 0; i < sizeof off / sizeof off[0]; i++) {
@@ -258,8 +258,8 @@ static void test_valve_opening_lag(void **state)
 {
     (void)state;
     const double tau = 0.05, at[4] = {1.0, 1.02, 1.6, 2.6};
-    const double prompt[PLANT_FX_MAX_PARAMS] = {0}, lag[PLANT_FX_MAX_PARAMS] = {0, 0, 0, tau},
-                 delay[PLANT_FX_MAX_PARAMS] = {tau, tau, 0, 0}, tiny[PLANT_FX_MAX_PARAMS] = {0, 0, 0, 1e-4};
+    const double prompt[PLANT_FX_MAX_PARAMS] = {0}, lag[PLANT_FX_MAX_PARAMS] = {0, 0, tau},
+                 delay[PLANT_FX_MAX_PARAMS] = {tau, tau, 0}, tiny[PLANT_FX_MAX_PARAMS] = {0, 0, 1e-4};
     double pn[4], pl[4], pd[4], pt[4];
     vent_pulse(prompt, at, 4, pn);
     vent_pulse(lag, at, 4, pl);
@@ -379,7 +379,7 @@ static void test_leak_empties_and_closed_plant_keeps_mass(void **state)
 static const double *on_params(bool is_truth, int id)
 {
     static const double cand[8][PLANT_FX_MAX_PARAMS] = {
-        {0}, {5.0}, {2.0, -50.0, 0.03}, {100.0, 50.0, 0.005}, {0.1, 0.2, 0.3, 0.8},
+        {0}, {5.0}, {2.0, -50.0, 0.03}, {100.0, 50.0, 0.005}, {0.1, 0.2, 0.3},
         {0.1, -1.5e-4, 2e-4, 0.5, 1e-4, 0.5, 1.0, 1.0}, {2e-8}, {0.3, 0.1, 2000.0, 0.001}};
     static const double tru[8][PLANT_FX_MAX_PARAMS] = {
         {0}, {8.0, 300.0, 10.0}, {0.05, -0.03, 0.0, 0.04, -0.05}, {100.0, 60.0, 0.004, 2e5, 2000.0},
@@ -423,7 +423,7 @@ static void test_pair_with_a_nominal_second_is_the_single(void **state)
 {
     (void)state;
     static const double off[8][PLANT_FX_MAX_PARAMS] = {
-        {0}, {0}, {0}, {0, 0, 0.005}, {0, 0, 0, 0}, {0, 0}, {0}, {0}};
+        {0}, {0}, {0}, {0, 0, 0.005}, {0, 0, 0}, {0, 0}, {0}, {0}};
     plant_params p = thesis();
     for (int a = THERMAL; a <= SENSOR_LAG; a++)
         for (int b = THERMAL; b <= SENSOR_LAG; b++) {
