@@ -69,8 +69,8 @@ const plant_fx_ops fx_friction_ops = {.stage = PLANT_FX_STAGE_FORCE, .rhs = fric
 
 /* ---- valve_dynamics: opening/closing delays, and an opening that follows the
  * delayed command as a first-order lag (q2). The flow law and the discharge
- * coefficients stay the config's: changing either is calibration
- * (calibrate.py), not a valve effect. ---- */
+ * coefficients stay the config's: a rescaled Cd is calibration (calibrate.py),
+ * and a steady flow law is not dynamics. ---- */
 
 /* First-order lag over a span of len_s from the opening *o toward g (time
  * constant tau_s > 0): the mean opening over the span; *o becomes its end. */
