@@ -51,17 +51,20 @@ static plant_params thesis(void)
     return cfg.plant;
 }
 
-/* 30 s: charge 8 s, rest 7 s, vent 6 s, rest; load 900 lb then 1100 lb from 5 s. */
-static void cycle(plant_fx *f)
+/* 30 s: charge 8 s, rest 7 s, vent 6 s, rest; load 900 lb then 1100 lb from 5 s;
+ * this many RK4 substeps a tick. */
+static void cycle_substeps(plant_fx *f, int substeps)
 {
     for (int k = 0; k < 3000; k++) {
         double t = k * 0.01;
         plant_inputs in = {t < 8.0, t < 8.0 || (t >= 15.0 && t < 21.0), t >= 15.0 && t < 21.0, false,
                            t < 5.0 ? 4003.4 : 4893.0};
         plant_fx_set_inputs(f, &in);
-        plant_fx_advance(f, 0.01, 10);
+        plant_fx_advance(f, 0.01, substeps);
     }
 }
+
+static void cycle(plant_fx *f) { cycle_substeps(f, 10); }
 
 static void assert_finite(const plant_fx *f)
 {
@@ -132,18 +135,6 @@ static void test_off_is_the_nominal_plant(void **state)
         cycle(&f);
         for (int s = 0; s < PLANT_NX; s++)
             assert_true(f.pl.x[s] == ref.x[s]);
-    }
-}
-
-/* cycle() with this many RK4 substeps a tick. */
-static void cycle_substeps(plant_fx *f, int substeps)
-{
-    for (int k = 0; k < 3000; k++) {
-        double t = k * 0.01;
-        plant_inputs in = {t < 8.0, t < 8.0 || (t >= 15.0 && t < 21.0), t >= 15.0 && t < 21.0, false,
-                           t < 5.0 ? 4003.4 : 4893.0};
-        plant_fx_set_inputs(f, &in);
-        plant_fx_advance(f, 0.01, substeps);
     }
 }
 
