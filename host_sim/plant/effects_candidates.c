@@ -134,16 +134,16 @@ static void valve_inputs(plant_fx *f, const double *q, plant_inputs *eff)
     eff->vent_valve = f->open_frac[1] > 0.0;
 }
 
-/* The lagged openings move over the tick as it was (a log's ticks vary). */
+/* The lagged openings move over the tick as it was (a log's ticks vary);
+ * without a lag nothing reads them. */
 static void valve_after_tick(plant_fx *f, const double *q, const double raw[4], double dt_s, bool first)
 {
     (void)raw;
     (void)first;
+    if (!(q[2] > 0.0))
+        return;
     for (int i = 0; i < 2; i++)
-        if (q[2] > 0.0)
-            (void)lagged_opening(&f->opening[i], f->eff_before[i], f->eff[i], f->switch_in_s[i], dt_s, q[2]);
-        else
-            f->opening[i] = f->eff[i] ? 1.0 : 0.0;
+        (void)lagged_opening(&f->opening[i], f->eff_before[i], f->eff[i], f->switch_in_s[i], dt_s, q[2]);
 }
 
 static void valve_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
