@@ -44,7 +44,8 @@ from .effects import from_unit
 from .uncertainty import Z95, autocorrelation_inflation, jacobian, unit_covariance
 
 PRIOR_PER_DOUBLING = 0.02   # prior residual for a factor 2 (or a range's width) away from the config
-MATERIAL_REL = 0.03         # a change below 3 % is not reported as moved
+MATERIAL_REL = 0.03         # a change below 3 % is not reported as moved (unless it carries the gain)
+ALIKE_SHARE = 0.10          # values alike when alone they leave held-out gaps within 10 % (as calibration/effect)
 # No interval narrower than +-1 % of the value: the plant model replays a rig to about
 # that (a compressor 15 % weak came back -14.9 % with a Jacobian interval of +-0.01 %).
 MODEL_FLOOR_REL = 0.01
@@ -257,6 +258,32 @@ def fit_subset(cal, u, idx, max_nfev):
 
 
 MIN_SS_GAIN = 0.05     # and lower the calibration residual's sum of squares by 5 %
+MIN_SS_GAIN = 0.05     # and lower the calibration residual's sum of squares by 5 %
+GRID = 9               # points across a parameter's range, then as many again around the best
+
+
+def _grid_best(cal, u, j, xs, best, best_ss):
+    for x in xs:
+        v = np.array(u, dtype=float)
+        v[j] = x
+        ss = float(np.sum(cal.data_residual(v) ** 2))
+        if ss < best_ss:
+            best, best_ss = v, ss
+    return best, best_ss
+
+
+def grid_start(cal, u, j):
+    """u with parameter j at the best of a grid over its range (or where it is), the
+    grid refined once around its best point (a step of 1/32 of the range). The closed
+    loop makes the residual rough in a single value: a 1 % larger pipe moves a valve's
+    switching by a tick and the residual up; the basin of a pipe 30 % larger is
+    about +-5 % wide. A local fit from the config's value stays on such a ridge; from
+    the grid's best it does not."""
+    best, best_ss = _grid_best(cal, u, j, np.linspace(0.0, 1.0, GRID), np.array(u, dtype=float),
+                               float(np.sum(cal.data_residual(u) ** 2)))
+    step = 1.0 / (GRID - 1)
+    fine = np.clip(best[j] + np.linspace(-step, step, GRID), 0.0, 1.0)
+    return _grid_best(cal, u, j, fine, best, best_ss)[0]
 
 
 def worth_adding(r_old, ss_new):
@@ -274,19 +301,21 @@ def worth_adding(r_old, ss_new):
 
 def fit_calibration(cal, max_nfev=12, progress=None):
     """Forward selection: each round fits every parameter not yet chosen alone
-    (the chosen ones held), adds the one that lowers the calibration residual most
+    (the chosen ones held; from the best of a grid over its range), adds the one that lowers the calibration residual most
     if it pays for itself (worth_adding), then refits the chosen set jointly.
     One parameter at a time finds the value that is wrong; a joint fit of all
     of them from the config trades small compensating errors among the rest.
     A value that ends pinned at the end of its span is not taken (Space.stretched).
-    Returns (unit point, chosen indices)."""
+    Returns (unit point, chosen indices, {index: unit point} of the first round: each
+    parameter fitted alone from the config, where not pinned at a chosen span's end)."""
     u = np.array(cal.space.u0, dtype=float)
-    chosen = []
+    chosen, singles = [], None
     r = cal.data_residual(u)
     while len(chosen) < min(MAX_MOVED, len(u)):
-        trials = [(j, fit_subset(cal, u, [j], max_nfev)) for j in range(len(u)) if j not in chosen]
+        trials = [(j, fit_subset(cal, grid_start(cal, u, j), [j], max_nfev)) for j in range(len(u)) if j not in chosen]
         scored = [(float(np.sum(cal.data_residual(v) ** 2)), j, v) for j, v in trials
                   if not cal.space.stretched(j, v[j])]
+        singles = {j: v for _, j, v in scored} if singles is None else singles
         if not scored:
             break
         ss, j, v = min(scored, key=lambda x: x[0])
@@ -297,7 +326,39 @@ def fit_calibration(cal, max_nfev=12, progress=None):
         r = cal.data_residual(u)
         if progress:
             progress(f"      + {cal.space.params[j].name:<22} calibration gap {fit.cost_to_gap(r, len(cal.runs)):.3f}")
-    return u, chosen
+    return u, chosen, singles or {}
+
+
+def carries_gain(hold, u, chosen, before, after):
+    """Per chosen index: whether setting it alone back to the config's value gives back
+    at least half the calibration's held-out gain (before - after). Such a value
+    matters however small its change: the spring's volume 1.4 % larger holds the same
+    air as a pipe 30 % larger."""
+    out = {}
+    for j in chosen:
+        v = np.array(u, dtype=float)
+        v[j] = hold.space.u0[j]
+        out[j] = hold.gap(v) - after >= 0.5 * (before - after)
+    return out
+
+
+def alike_values(cal, hold, singles, first, share):
+    """Other values that, each fitted alone, explain the held-out runs as well as the
+    first one chosen fitted alone (a held-out gap within `share`), by a material
+    change: the set the logs cannot tell apart. [{name, value, change_pct, holdout_gap}]"""
+    if first not in singles:
+        return []
+    sp, g_first = cal.space, hold.gap(singles[first])
+    out = []
+    for k, v in singles.items():
+        change = sp.values(v)[k] / sp.base[k] - 1.0
+        if k == first or abs(change) < MATERIAL_REL:
+            continue
+        g = hold.gap(v)
+        if g <= (1.0 + share) * g_first:
+            out.append({"name": sp.params[k].name, "value": float(sp.values(v)[k]), "change_pct": 100.0 * change,
+                        "holdout_gap": g, "first_holdout_gap": g_first})
+    return out
 
 
 def _sd(cal, u, chosen):
@@ -333,7 +394,7 @@ def over_runs(cal, u, chosen, max_nfev=12):
     return out
 
 
-def parameter_table(cal, u, chosen, accepted):
+def parameter_table(cal, u, chosen, accepted, matters=None):
     """Per parameter: config value, calibrated value, change, 95 % interval (the
     Jacobian's, widened to hold the refits on each run alone), flags."""
     sds = _sd(cal, u, chosen)
@@ -354,7 +415,8 @@ def parameter_table(cal, u, chosen, accepted):
         ident = bool(j not in chosen or np.isfinite(sd) and (math.log(max(hi, 1e-300) / max(lo, 1e-300)) < 2 * UNIDENTIFIABLE_LOG
                                           if n.log else hi - lo < 0.5 * (sp.hi[j] - sp.lo[j])))
         change = v / base - 1.0 if base != 0 else 0.0
-        moved = bool(accepted and j in chosen and ident and not (lo <= base <= hi) and abs(change) >= MATERIAL_REL)
+        material = abs(change) >= MATERIAL_REL or (matters or {}).get(j, False)
+        moved = bool(accepted and j in chosen and ident and not (lo <= base <= hi) and material)
         out.append({"name": n.name, "section": n.section, "key": n.key, "config": base, "value": v,
                     "change_pct": 100.0 * change, "interval": [lo, hi], "range": [float(sp.lo[j]), float(sp.hi[j])],
                     "identifiable": ident, "at_bound": bool(u[j] <= 1e-3 or u[j] >= 1 - 1e-3),
@@ -376,13 +438,14 @@ def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progres
     cal = Calibrated(sim, space, calib, mode, folder)
     hold = Calibrated(sim, space, holdout, mode, folder, fit.start_shifts(holdout))
     progress(f"      fitting {len(space.params)} nominal parameters of {space.name} on {len(calib)} run(s)")
-    u, chosen = fit_calibration(cal, max_nfev, progress)
+    u, chosen, singles = fit_calibration(cal, max_nfev, progress)
     before_cal, after_cal = cal.gap(space.u0), cal.gap(u)
     before, after = hold.gap(space.u0), hold.gap(u)
     shrink = shrink_pct(before, after)
     gate = fit.NOISE_GAIN * fit.noise_gap(holdout)
     accepted = shrink >= threshold and before - after >= gate
-    table = parameter_table(cal, u, chosen, accepted)
+    table = parameter_table(cal, u, chosen, accepted, carries_gain(hold, u, chosen, before, after) if accepted else {})
+    alike = alike_values(cal, hold, singles, chosen[0], ALIKE_SHARE) if accepted and chosen else []
     moved = [p for p in table if p["moved"]]
     notes = [("not fitted: the config's value" if not p["chosen"] else
               ("moved" if p["moved"] else "fitted, not moved") + f": config {p['config']:.6g}, {p['change_pct']:+.1f}%, "
@@ -395,6 +458,7 @@ def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progres
                                      f"reach: not kept")),
         "parameters": table,
         "moved": [p["name"] for p in moved],
+        "alike": alike,
         "calibration_gap": {"before": before_cal, "after": after_cal},
         "holdout_gap": {"before": before, "after": after},
         "shrink_pct": shrink,
@@ -412,6 +476,9 @@ def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progres
             mark = "moved" if p["moved"] else ("not identifiable" if not p["identifiable"] else "not moved")
             progress(f"      {p['name']:<22} {p['config']:.4g} -> {p['value']:.4g} ({p['change_pct']:+.1f}%, "
                      f"95% {p['interval'][0]:.4g}..{p['interval'][1]:.4g}) {mark}")
+    for a in alike:
+        progress(f"      alike: {a['name']} {a['change_pct']:+.1f}% alone explains the held-out runs as well as "
+                 f"{space.params[chosen[0]].name} alone ({a['holdout_gap']:.3f} against {a['first_holdout_gap']:.3f})")
     progress(f"      calibration: {report['why']}; {report['simulations']} simulations in {report['seconds']:.1f} s")
     return report
 

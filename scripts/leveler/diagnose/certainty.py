@@ -50,6 +50,15 @@ def _rival_experiment(sim, config, calib, cal_config, as_given, rival, progress)
     return exp
 
 
+def alike_names(calibration):
+    """The kept calibration's moved values and those alike to them (calibrate.alike_values),
+    when there are alike ones; else []."""
+    cal = calibration or {}
+    if not cal.get("kept") or not cal.get("alike"):
+        return []
+    return list(dict.fromkeys(list(cal["moved"]) + [a["name"] for a in cal["alike"]]))
+
+
 def confidence_step(ask, evidence, basis, verdict, look, calibration, cal_config, as_given, noise):
     """How sure the verdict is (confidence.py), and the experiment that would separate
     what it cannot: the calibration from its rival effect, or two effects. Returns
@@ -58,7 +67,7 @@ def confidence_step(ask, evidence, basis, verdict, look, calibration, cal_config
     effects = verdict.effects
     sure = confidence.assess(effects, basis.ranking, basis.gaps[1], noise,
                              look["lookalikes"] and look["lookalikes"]["group"], look["experiment"],
-                             verdict.finding, rival)
+                             verdict.finding, rival, alike_names(calibration))
     designs = evidence.designs_experiments
     if designs and rival and not look["experiment"] and not ask.design_pair:
         look = dict(look, experiment=_rival_experiment(ask.sim, ask.config, basis.calib, cal_config, as_given,

@@ -64,11 +64,14 @@ def _contenders(ranking, lead_pct, pts):
     return [r["effect"] for r in ranking if r["shrink_pct"] >= lead_pct - pts]
 
 
-def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained_finding, rival=None):
+def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained_finding, rival=None,
+           alike_values=None):
     """{level, probability, set, why, experiment}. effects: the named effect(s)
     ([] for none); ranking: candidates by held-out shrink over the calibrated model;
     rival: an effect that, on the config as given, explains the held-out runs as
-    well as the kept calibration (pipeline._effect_first)."""
+    well as the kept calibration (pipeline._effect_first); alike_values: the kept
+    calibration's first value and the others that alone explain the runs as well
+    ([name, ...], calibrate.alike_values)."""
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
     margin = best["shrink_pct"] - runner["shrink_pct"] if runner else 100.0
@@ -81,6 +84,10 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
         cset = list(dict.fromkeys(list(effects) + ["calibration: " + ", ".join(rival["moved"])] + [rival["effect"]]))
         why = (f"mis-set {', '.join(rival['moved'])} and {rival['effect']} explain the held-out runs about as "
                f"well (held-out gaps {rival['calibration_gap']:.3f} and {rival['effect_gap']:.3f})")
+    elif not effects and alike_values:
+        level, cset = "unsure", ["calibration: " + n for n in alike_values]
+        why = (f"no effect; the mis-set value is one of {', '.join(alike_values)}: each alone explains "
+               f"the held-out runs about as well")
     elif not effects:
         quiet = noise > 0 and cal_gap <= NONE_QUIET * noise
         level = "sure" if quiet else "likely"
