@@ -10,12 +10,12 @@ from . import fit
 from .cplant import config_path
 from .gap import shrink
 
-# The calibration stands against the best effect (fitted alone on the config as given)
-# only when it leaves a held-out gap smaller by this share of the effect's (and by the
-# noise gate). Within this share the two explain the held-out runs alike: the effect is
-# named, the calibration recorded as its look-alike (`rival`), and the verdict's
-# confidence says so with the experiment that would tell them apart.
-CALIBRATION_FIRST_PCT = 10.0
+# The calibration and the best effect (fitted alone on the config as given) explain the
+# held-out runs alike when their held-out gaps differ by less than this share (or than
+# the noise gate): the one with the smaller gap stands (the calibration on a tie), the
+# other is recorded as its look-alike (`rival`), and the verdict's confidence says so
+# with the experiment that would tell them apart.
+CALIBRATION_FIRST_PCT = 100.0 * calibrate.ALIKE_SHARE
 
 JOINT_CANDIDATES = 2   # the effects (best alone on the config as given) fitted with the calibration
 
@@ -46,29 +46,44 @@ def beside_effects(calibration, ranking):
 def effect_first(calibration, best, gate, progress):
     """Whether the gap is the leading effect's rather than mis-set nominal values.
     Both were fitted on the calibration runs (the effect on the config as given) and
-    are judged on held-out runs neither saw. Returns False when the calibration is
-    clearly better: it stands, and an effect must explain what it leaves (calibrated_basis).
-    Otherwise True: the calibration, which bends nominal values to mimic the effect,
-    is not kept (recorded as the effect's `rival` when the two are alike)."""
+    are judged on held-out runs neither saw; the better there stands. Returns False
+    when the calibration leaves the smaller held-out gap: it stands, and an effect
+    must explain what it leaves (calibrated_basis). Nominal values come first: when
+    the two are alike (within CALIBRATION_FIRST_PCT, or closer than the noise gate)
+    the calibration still stands, the effect recorded as its `rival`. Otherwise True:
+    the calibration, which bends nominal values to mimic the effect, is not kept (the
+    effect's `rival` when the two are alike)."""
     g_cal, g_fx = calibration["holdout_gap"]["after"], best["holdout_gap"]
     share = CALIBRATION_FIRST_PCT / 100.0
-    if g_cal <= (1.0 - share) * g_fx and g_fx - g_cal >= gate:
+    if g_cal <= g_fx:
+        if (g_cal > (1.0 - share) * g_fx or g_fx - g_cal < gate) and calibration["moved"]:
+            calibration["rival"] = {"effect": best["effect"], "moved": list(calibration["moved"]),
+                                    "effect_gap": g_fx, "calibration_gap": g_cal}
+            calibration["why"] += f"; {best['effect']} alone leaves {g_fx:.3f}: alike, the calibration stands"
+        progress(f"      {best['effect']} leaves a held-out gap of {g_fx:.3f}, calibration {g_cal:.3f}: "
+                 + ("alike; the calibration stands, the effect is its look-alike" if calibration.get("rival")
+                    else "the calibration stands"))
         return False
     alike = g_fx >= (1.0 - share) * g_cal and calibration["moved"]
     if alike:
         calibration["rival"] = {"effect": best["effect"], "moved": list(calibration["moved"]),
                                 "effect_gap": g_fx, "calibration_gap": g_cal}
-    calibration.update(kept=False, moved=[], superseded_by=best["effect"],
-                       why=calibration["why"].replace(", kept", "") +
-                       f"; {best['effect']} alone leaves {g_fx:.3f}: "
-                       + ("alike; the effect is named, the calibration is its look-alike" if alike else
-                          "the effect explains the held-out runs better; calibration not kept"))
+    set_aside(calibration, best["effect"], g_fx,
+              "alike; the effect is named, the calibration is its look-alike" if alike else
+              "the effect explains the held-out runs better; calibration not kept", progress)
+    return True
+
+
+def set_aside(calibration, effect, g_fx, why, progress):
+    """The calibration is not kept: `effect` (one or a pair, "a+b") leaving the held-out
+    gap g_fx is named instead; the report keeps the calibration's figures and says why."""
+    calibration.update(kept=False, moved=[], superseded_by=effect,
+                       why=calibration["why"].replace(", kept", "") + f"; {effect} leaves {g_fx:.3f}: {why}")
     for p in calibration["parameters"]:
         p["moved"] = False
     calibration["ini"] = None
-    progress(f"      {best['effect']} leaves a held-out gap of {g_fx:.3f}, calibration {g_cal:.3f}: "
-             + ("alike" if alike else "the effect explains it better") + "; calibration not kept")
-    return True
+    progress(f"      {effect} leaves a held-out gap of {g_fx:.3f}, calibration "
+             f"{calibration['holdout_gap']['after']:.3f}: {why}")
 
 
 def _joint_step(handles, as_given, fits, gaps, progress):

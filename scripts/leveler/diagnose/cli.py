@@ -204,11 +204,15 @@ def diagnose_into(a, say, tmp, out):
     cal = result.get("calibration") or {}
     moved = [p for p in cal.get("parameters", []) if p["moved"]]
     rival = cal.get("rival")
-    say("calibrated: " + (", ".join(f"{p['name']} {p['change_pct']:+.1f}%" for p in moved) or
+    apart = (" (experiment.csv tells them apart)" if "calibration" in
+             (result.get("experiment") or {}).get("between", []) else "")
+    say("calibrated: " + (", ".join(f"{p['name']} {p['change_pct']:+.1f}%" for p in moved) +
+                          (f"; {rival['effect']} alone would explain the held-out runs about as well{apart}"
+                           if rival else "") +
+                          ("; alike alone: " + ", ".join(f"{a['name']} {a['change_pct']:+.1f}%" for a in cal["alike"])
+                           if moved and cal.get("alike") else "") or
                           (f"not kept; {', '.join(rival['moved'])} would explain the held-out runs as well as "
-                           f"{rival['effect']}" + (" (experiment.csv tells them apart)" if "calibration" in
-                                                   (result.get("experiment") or {}).get("between", []) else "")
-                           if rival else "no parameter moved")))
+                           f"{rival['effect']}{apart}" if rival else "no parameter moved")))
     say(f"effect: {' + '.join(result['effects']) or 'none'}; held-out shrink {result['shrink_pct']:.1f}%; "
         f"{result['seconds']:.1f} s; wrote {out}/diagnosis.json and report.html")
     return 0
