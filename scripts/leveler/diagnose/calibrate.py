@@ -258,7 +258,6 @@ def fit_subset(cal, u, idx, max_nfev):
 
 
 MIN_SS_GAIN = 0.05     # and lower the calibration residual's sum of squares by 5 %
-MIN_SS_GAIN = 0.05     # and lower the calibration residual's sum of squares by 5 %
 GRID = 9               # points across a parameter's range, then as many again around the best
 
 
@@ -301,8 +300,9 @@ def worth_adding(r_old, ss_new):
 
 def fit_calibration(cal, max_nfev=12, progress=None):
     """Forward selection: each round fits every parameter not yet chosen alone
-    (the chosen ones held; from the best of a grid over its range), adds the one that lowers the calibration residual most
-    if it pays for itself (worth_adding), then refits the chosen set jointly.
+    (the chosen ones held; from the best of a grid over its range, grid_start), adds
+    the one that lowers the calibration residual most if it pays for itself
+    (worth_adding), then refits the chosen set jointly.
     One parameter at a time finds the value that is wrong; a joint fit of all
     of them from the config trades small compensating errors among the rest.
     A value that ends pinned at the end of its span is not taken (Space.stretched).

@@ -70,8 +70,8 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
     ([] for none); ranking: candidates by held-out shrink over the calibrated model;
     rival: an effect that, on the config as given, explains the held-out runs as
     well as the kept calibration (pipeline._effect_first); alike_values: the kept
-    calibration's first value and the others that alone explain the runs as well
-    ([name, ...], calibrate.alike_values)."""
+    calibration's moved values and the others that alone explain the runs as well
+    as its first ([name, ...], certainty.alike_names)."""
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
     margin = best["shrink_pct"] - runner["shrink_pct"] if runner else 100.0
@@ -86,8 +86,8 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
                f"well (held-out gaps {rival['calibration_gap']:.3f} and {rival['effect_gap']:.3f})")
     elif not effects and alike_values:
         level, cset = "unsure", ["calibration: " + n for n in alike_values]
-        why = (f"no effect; the mis-set value is one of {', '.join(alike_values)}: each alone explains "
-               f"the held-out runs about as well")
+        why = (f"no effect; which of {', '.join(alike_values)} is set wrong these logs cannot tell: "
+               f"values outside the calibration's explain the held-out runs about as well alone")
     elif not effects:
         quiet = noise > 0 and cal_gap <= NONE_QUIET * noise
         level = "sure" if quiet else "likely"
