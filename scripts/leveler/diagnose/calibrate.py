@@ -261,8 +261,13 @@ MIN_SS_GAIN = 0.05     # and lower the calibration residual's sum of squares by 
 GRID = 9               # points across a parameter's range, then as many again around the best
 
 
-def _grid_best(cal, u, j, xs, best, best_ss):
+def _grid_best(cal, u, j, xs, best, best_ss, seen):
+    """The best of u with parameter j at each of xs not in `seen` (points already
+    simulated: the fine grid's ends and middle are coarse points), and best/best_ss."""
     for x in xs:
+        if any(abs(x - y) < 1e-12 for y in seen):
+            continue
+        seen.append(x)
         v = np.array(u, dtype=float)
         v[j] = x
         ss = float(np.sum(cal.data_residual(v) ** 2))
@@ -278,11 +283,12 @@ def grid_start(cal, u, j):
     switching by a tick and the residual up; the basin of a pipe 30 % larger is
     about +-5 % wide. A local fit from the config's value stays on such a ridge; from
     the grid's best it does not."""
+    seen = [float(u[j])]
     best, best_ss = _grid_best(cal, u, j, np.linspace(0.0, 1.0, GRID), np.array(u, dtype=float),
-                               float(np.sum(cal.data_residual(u) ** 2)))
+                               float(np.sum(cal.data_residual(u) ** 2)), seen)
     step = 1.0 / (GRID - 1)
     fine = np.clip(best[j] + np.linspace(-step, step, GRID), 0.0, 1.0)
-    return _grid_best(cal, u, j, fine, best, best_ss)[0]
+    return _grid_best(cal, u, j, fine, best, best_ss, seen)[0]
 
 
 def worth_adding(r_old, ss_new):
