@@ -77,7 +77,7 @@ def test_one_value_is_found_across_a_rough_residual(cplant, tmp_path):
     j = [n.name for n in space.params].index("pipe_volume")
     ss = lambda u: float(np.sum(cal.data_residual(u) ** 2))     # noqa: E731
     local = calibrate.fit_subset(cal, space.u0, [j], 12)
-    found = calibrate.fit_subset(cal, calibrate.grid_start(cal, space.u0, j), [j], 12)
+    found = calibrate.fit_subset(cal, calibrate.grid_start(cal, space.u0, j, ss(space.u0)), [j], 12)
     assert space.values(found)[j] == pytest.approx(truth, rel=0.03)
     assert ss(found) < 0.8 * ss(local)
 

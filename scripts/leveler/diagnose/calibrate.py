@@ -276,16 +276,15 @@ def _grid_best(cal, u, j, xs, best, best_ss, seen):
     return best, best_ss
 
 
-def grid_start(cal, u, j):
+def grid_start(cal, u, j, ss_u):
     """u with parameter j at the best of a grid over its range (or where it is), the
     grid refined once around its best point (a step of 1/32 of the range). The closed
     loop makes the residual rough in a single value: a 1 % larger pipe moves a valve's
     switching by a tick and the residual up; the basin of a pipe 30 % larger is
     about +-5 % wide. A local fit from the config's value stays on such a ridge; from
-    the grid's best it does not."""
+    the grid's best it does not. ss_u: the residual's sum of squares at u (the caller has it)."""
     seen = [float(u[j])]
-    best, best_ss = _grid_best(cal, u, j, np.linspace(0.0, 1.0, GRID), np.array(u, dtype=float),
-                               float(np.sum(cal.data_residual(u) ** 2)), seen)
+    best, best_ss = _grid_best(cal, u, j, np.linspace(0.0, 1.0, GRID), np.array(u, dtype=float), ss_u, seen)
     step = 1.0 / (GRID - 1)
     fine = np.clip(best[j] + np.linspace(-step, step, GRID), 0.0, 1.0)
     return _grid_best(cal, u, j, fine, best, best_ss, seen)[0]
@@ -318,7 +317,9 @@ def fit_calibration(cal, max_nfev=12, progress=None):
     chosen, singles = [], None
     r = cal.data_residual(u)
     while len(chosen) < min(MAX_MOVED, len(u)):
-        trials = [(j, fit_subset(cal, grid_start(cal, u, j), [j], max_nfev)) for j in range(len(u)) if j not in chosen]
+        ss_u = float(np.sum(r ** 2))
+        trials = [(j, fit_subset(cal, grid_start(cal, u, j, ss_u), [j], max_nfev)) for j in range(len(u))
+                  if j not in chosen]
         scored = [(float(np.sum(cal.data_residual(v) ** 2)), j, v) for j, v in trials
                   if not cal.space.stretched(j, v[j])]
         singles = {j: v for _, j, v in scored} if singles is None else singles

@@ -57,8 +57,7 @@ def effect_first(calibration, best, gate, progress):
     share = CALIBRATION_FIRST_PCT / 100.0
     if g_cal <= g_fx:
         if (g_cal > (1.0 - share) * g_fx or g_fx - g_cal < gate) and calibration["moved"]:
-            calibration["rival"] = {"effect": best["effect"], "moved": list(calibration["moved"]),
-                                    "effect_gap": g_fx, "calibration_gap": g_cal}
+            _record_rival(calibration, best["effect"], g_fx, g_cal)
             calibration["why"] += f"; {best['effect']} alone leaves {g_fx:.3f}: alike, the calibration stands"
         progress(f"      {best['effect']} leaves a held-out gap of {g_fx:.3f}, calibration {g_cal:.3f}: "
                  + ("alike; the calibration stands, the effect is its look-alike" if calibration.get("rival")
@@ -66,12 +65,17 @@ def effect_first(calibration, best, gate, progress):
         return False
     alike = g_fx >= (1.0 - share) * g_cal and calibration["moved"]
     if alike:
-        calibration["rival"] = {"effect": best["effect"], "moved": list(calibration["moved"]),
-                                "effect_gap": g_fx, "calibration_gap": g_cal}
+        _record_rival(calibration, best["effect"], g_fx, g_cal)
     set_aside(calibration, best["effect"], g_fx,
               "alike; the effect is named, the calibration is its look-alike" if alike else
               "the effect explains the held-out runs better; calibration not kept", progress)
     return True
+
+
+def _record_rival(calibration, effect, g_fx, g_cal):
+    """The effect and the calibration explain the held-out runs alike (effect_first)."""
+    calibration["rival"] = {"effect": effect, "moved": list(calibration["moved"]),
+                            "effect_gap": g_fx, "calibration_gap": g_cal}
 
 
 def set_aside(calibration, effect, g_fx, why, progress):
