@@ -65,6 +65,9 @@ def test_every_form_runs_and_moves_the_plant(cplant, tmp_path):
 def test_calibration_names_are_read_loosely():
     assert bt._calibration_names(None) == []
     assert bt._calibration_names({"moved": ["compressor_capacity"]}) == ["compressor_capacity"]
+    # a rival effect's look-alike values are the calibration's own: each name once
+    rival = {"moved": ["pipe_volume"], "rival": {"effect": "line_delay", "moved": ["pipe_volume", "damping_up"]}}
+    assert bt._calibration_names(rival) == ["pipe_volume", "damping_up"]
     cal = {"parameters": [{"name": "compressor_capacity", "moved": True},
                           {"name": "damping_up", "moved": False}]}
     assert bt._calibration_names(cal) == ["compressor_capacity"]

@@ -359,7 +359,7 @@ def _calibration_names(cal):
     if isinstance(cal, dict) and isinstance(cal.get("moved"), list):
         # with a rival effect the calibration's values are its look-alike: they moved
         moved = cal["moved"] + list((cal.get("rival") or {}).get("moved", []))
-        return [str(x.get("name", x) if isinstance(x, dict) else x) for x in moved]
+        return list(dict.fromkeys(str(x.get("name", x) if isinstance(x, dict) else x) for x in moved))
     items = cal.get("parameters", cal) if isinstance(cal, dict) else cal
     if isinstance(items, dict):
         items = [dict(v, name=k) if isinstance(v, dict) else {"name": k, "value": v} for k, v in items.items()]
