@@ -1,0 +1,38 @@
+"""The 'not explained by any candidate' rule (confidence.unexplained) on the figures of
+cases the blind test measured: a gap a candidate only partly closes is not named."""
+from leveler.diagnose import confidence
+
+PHASES = {"settle": {"before": 20.6}, "climb": {"before": 18.8}, "stuck_low": {"before": 6.2},
+          "return": {"before": 1.0}}
+
+
+def finding(shrink_pct, cal_gap_noise, threshold=15.0):
+    return confidence.unexplained([{"effect": "friction", "shrink_pct": shrink_pct}], cal_gap_noise, 1.0,
+                                  PHASES, threshold)
+
+
+def test_half_closed_gap_far_above_noise_is_not_explained():
+    # unknown_stiffness seed 1: friction closes 64.8 % of 78.4 noise gaps, leaving 27.6
+    f = finding(64.8, 78.4)
+    assert f is not None and f["nearest"] == "friction"
+    assert abs(f["left_times_noise"] - 78.4 * 0.352) < 1e-9
+    assert [w["phase"] for w in f["where"]] == ["settle", "climb", "stuck_low"]
+    assert "two thirds" in f["why"]
+
+
+def test_under_half_is_not_explained_whatever_is_left():
+    assert finding(45.0, 4.0) is not None
+
+
+def test_a_weak_effect_closed_to_the_noise_is_explained():
+    # present area truths: 38.9 % and 58.9 % closed, about one noise gap left
+    assert finding(58.9, 1.19 / (1 - 0.589)) is None
+
+
+def test_most_of_a_large_gap_closed_is_explained():
+    # leak_porous seed 2 (offform): 90.9 % closed, 15.6 noise gaps left
+    assert finding(90.9, 15.6 / (1 - 0.909)) is None
+
+
+def test_a_gap_within_three_noise_gaps_is_never_a_finding():
+    assert finding(10.0, 2.9) is None
