@@ -82,6 +82,28 @@ def test_one_value_is_found_across_a_rough_residual(cplant, tmp_path):
     assert ss(found) < 0.8 * ss(local)
 
 
+def test_trials_in_two_processes_give_the_serial_result(cplant, tmp_path):
+    """The forward selection's trials run in forked processes (jobs 2): the same
+    values, the same choice and the same simulation count as one after the other."""
+    try:
+        rig, _ = _misset(str(tmp_path), "capacity-15%")
+        leveler_config.resolved(rig)
+    except leveler_config.ConfigError as e:
+        pytest.skip(f"leveler-sim not available: {e}")
+    calib, _ = _logs(cplant, str(tmp_path), rig)
+    config = cp.config_path("thesis-900lb")
+    space = calibrate.Space(config, leveler_config.resolved(config))
+    out = []
+    for jobs in (1, 2):
+        cal = calibrate.Calibrated(cplant, space, calib, "auto", str(tmp_path))
+        u, chosen, singles = calibrate.fit_calibration(cal, jobs=jobs)
+        out.append((u, chosen, singles, cal.nsim))
+    (u1, c1, s1, n1), (u2, c2, s2, n2) = out
+    assert c1 == c2 and c1 and np.array_equal(u1, u2)
+    assert s1.keys() == s2.keys() and all(np.array_equal(s1[k], s2[k]) for k in s1)
+    assert n1 == n2 > 0
+
+
 def test_calibration_moves_nothing_on_the_configs_own_logs(cplant, tmp_path):
     try:
         rig = bt.rig_config(str(tmp_path), "900lb", 4)

@@ -28,8 +28,10 @@ calibration cannot explain on the held-out run (pipeline.py).
 import copy
 import hashlib
 import math
+import multiprocessing
 import os
 import time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -303,7 +305,7 @@ def worth_adding(r_old, ss_new):
     return n_eff * math.log(ss_new / ss_old) + math.log(n_eff) < 0.0
 
 
-def fit_calibration(cal, max_nfev=12, progress=None):
+def fit_calibration(cal, max_nfev=12, progress=None, jobs=1):
     """Forward selection: each round fits every parameter not yet chosen alone
     (the chosen ones held; from the best of a grid over its range, grid_start), adds
     the one that lowers the calibration residual most if it pays for itself
@@ -312,28 +314,72 @@ def fit_calibration(cal, max_nfev=12, progress=None):
     of them from the config trades small compensating errors among the rest.
     A value that ends pinned at the end of its span is not taken (Space.stretched).
     Returns (unit point, chosen indices, {index: unit point} of the first round: each
-    parameter fitted alone from the config, where not pinned at a chosen span's end)."""
+    parameter fitted alone from the config, where not pinned at a chosen span's end).
+    jobs: processes for a round's trials."""
     u = np.array(cal.space.u0, dtype=float)
     chosen, singles = [], None
     r = cal.data_residual(u)
-    while len(chosen) < min(MAX_MOVED, len(u)):
-        ss_u = float(np.sum(r ** 2))
-        trials = [(j, fit_subset(cal, grid_start(cal, u, j, ss_u), [j], max_nfev)) for j in range(len(u))
-                  if j not in chosen]
-        scored = [(float(np.sum(cal.data_residual(v) ** 2)), j, v) for j, v in trials
-                  if not cal.space.stretched(j, v[j])]
-        singles = {j: v for _, j, v in scored} if singles is None else singles
-        if not scored:
-            break
-        ss, j, v = min(scored, key=lambda x: x[0])
-        if not worth_adding(r, ss):
-            break
-        chosen.append(j)
-        u = fit_subset(cal, v, chosen, 2 * max_nfev) if len(chosen) > 1 else v
-        r = cal.data_residual(u)
-        if progress:
-            progress(f"      + {cal.space.params[j].name:<22} calibration gap {fit.cost_to_gap(r, len(cal.runs)):.3f}")
+    with _TrialPool(cal, jobs) as trials_of:
+        while len(chosen) < min(MAX_MOVED, len(u)):
+            ss_u = float(np.sum(r ** 2))
+            trials = trials_of(u, [j for j in range(len(u)) if j not in chosen], ss_u, max_nfev)
+            scored = [(ss, j, v) for j, v, ss in trials if ss is not None]
+            singles = {j: v for _, j, v in scored} if singles is None else singles
+            if not scored:
+                break
+            ss, j, v = min(scored, key=lambda x: x[0])
+            if not worth_adding(r, ss):
+                break
+            chosen.append(j)
+            u = fit_subset(cal, v, chosen, 2 * max_nfev) if len(chosen) > 1 else v
+            r = cal.data_residual(u)
+            if progress:
+                progress(f"      + {cal.space.params[j].name:<22} calibration gap {fit.cost_to_gap(r, len(cal.runs)):.3f}")
     return u, chosen, singles or {}
+
+
+def _trial(cal, u, j, ss_u, max_nfev):
+    """Parameter j fitted alone from the grid's best (the others held at u): (j, unit
+    point, the calibration residual's sum of squares there or None when the value
+    is pinned at its span's end, simulations run)."""
+    n0 = cal.nsim
+    v = fit_subset(cal, grid_start(cal, u, j, ss_u), [j], max_nfev)
+    ss = None if cal.space.stretched(j, v[j]) else float(np.sum(cal.data_residual(v) ** 2))
+    return j, v, ss, cal.nsim - n0
+
+
+_forked = {}
+
+
+def _forked_trial(args):
+    return _trial(_forked["cal"], *args)
+
+
+class _TrialPool:
+    """A round's single-parameter trials, in `jobs` forked processes (each trial is
+    independent and deterministic: the same values as one after the other, in the
+    same order). Called as trials_of(u, indices, ss_u, max_nfev) -> [(j, v, ss)]."""
+
+    def __init__(self, cal, jobs):
+        self.cal, self.jobs, self.pool = cal, jobs or 1, None
+
+    def __enter__(self):
+        if self.jobs > 1 and "fork" in multiprocessing.get_all_start_methods():
+            _forked["cal"] = self.cal   # the children inherit it: the simulator is not pickled
+            self.pool = ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("fork"))
+        return self
+
+    def __exit__(self, *exc):
+        if self.pool is not None:
+            self.pool.shutdown()
+            _forked.pop("cal", None)
+
+    def __call__(self, u, todo, ss_u, max_nfev):
+        args = [(u, j, ss_u, max_nfev) for j in todo]
+        out = list(self.pool.map(_forked_trial, args)) if self.pool else [_trial(self.cal, *a) for a in args]
+        if self.pool:
+            self.cal.nsim += sum(n for *_, n in out)
+        return [(j, v, ss) for j, v, ss, _ in out]
 
 
 def carries_gain(hold, u, chosen, before, after):
@@ -437,7 +483,7 @@ def supported(sim):
     return hasattr(sim, "check_config")
 
 
-def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progress=print, max_nfev=12):
+def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progress=print, max_nfev=12, jobs=1):
     """The calibration stage. Returns its report (diagnosis.json's `calibration`)
     with `config_file`: the calibrated config when kept, else the user's."""
     t0 = time.perf_counter()
@@ -445,7 +491,7 @@ def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progres
     cal = Calibrated(sim, space, calib, mode, folder)
     hold = Calibrated(sim, space, holdout, mode, folder, fit.start_shifts(holdout))
     progress(f"      fitting {len(space.params)} nominal parameters of {space.name} on {len(calib)} run(s)")
-    u, chosen, singles = fit_calibration(cal, max_nfev, progress)
+    u, chosen, singles = fit_calibration(cal, max_nfev, progress, jobs)
     before_cal, after_cal = cal.gap(space.u0), cal.gap(u)
     before, after = hold.gap(space.u0), hold.gap(u)
     shrink = shrink_pct(before, after)

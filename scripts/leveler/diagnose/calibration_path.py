@@ -1,6 +1,7 @@
 """Calibrate before blaming, in the diagnosis: the nominal parameters fitted first
 (calibrate.py); whether they or the leading effect explain the held-out runs better;
 on the calibration path, the best effects refitted together with them."""
+import os
 from dataclasses import replace
 
 from . import calibrate
@@ -28,7 +29,7 @@ def calibration_step(ask, calib, holdout, folder, threshold):
         return None, ask.config, (calib, holdout)
     ask.progress("[2/4] calibrating the config's nominal parameters before blaming an effect")
     rep = calibrate.calibrate(ask.sim, config_path(ask.config), calib, holdout, ask.mode, folder, threshold,
-                              ask.progress)
+                              ask.progress, jobs=ask.jobs or min(os.cpu_count() or 1, 2))
     runs = rep.pop("runs")
     return rep, rep.pop("config_file"), runs
 
