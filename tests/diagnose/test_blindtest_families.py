@@ -31,6 +31,23 @@ def test_misset_rig_changes_its_one_parameter(tmp_path, spec):
         assert b[key] == pytest.approx(want, rel=1e-12)
 
 
+def test_combo_family_puts_every_effect_on_its_own_misset_rig():
+    from leveler.diagnose import effects as fx
+    specs = bt.family_specs("combo")
+    assert sorted(s["truth"] for s in specs) == sorted(fx.NAMES)
+    assert len({s["param"] for s in specs}) == len(specs)
+    misset = {m["form"]: m for m in bt.family_specs("misset")}
+    for s in specs:
+        effect, change = s["form"].split("@")
+        assert effect == s["truth"] and s["form_id"] is None
+        assert (s["keys"], s["change"], s["param"]) == (misset[change]["keys"], misset[change]["change"],
+                                                        misset[change]["param"])
+    # scored right only with both the effect and the parameter named
+    r = {"family": "combo", "truth": "leak", "verdict": "leak", "param_named": True}
+    assert bt.case_right(r) and not bt.case_right(dict(r, param_named=False))
+    assert not bt.case_right(dict(r, verdict="none"))
+
+
 def test_second_family_covers_every_effect_twice_and_unknowns():
     forms = bt.FORMS.values()
     by_effect = {}

@@ -28,7 +28,9 @@ seven effects written from the physics alone, apart from the candidates (truth2.
 truth2.json; measure on them, never tune); `unknown`, effects outside the catalogue
 (right: no catalogued effect named); `misset`, rigs that differ from thesis-900lb in one
 nominal parameter and have no effect (right: no effect named and, when the diagnosis
-reports a `calibration`, the parameter among those it moved); `all`. Each family is
+reports a `calibration`, the parameter among those it moved); `combo`, a first-family
+(present) truth effect on such a mis-set rig (right: the effect named and the parameter
+among those moved; a tuning family like `present`); `all`. Each family is
 reported with its confusion matrix, hit rate, median held-out shrink when right, false
 effects and a line per form, and the stated `confidence` levels in a reliability table.
 
@@ -110,7 +112,15 @@ MISSET = [
     ("polytropic_n=1.0", "polytropic_exponent", [("ambient", "polytropic_exponent")], ("=", 1.0)),
     ("polytropic_n=1.4", "polytropic_exponent", [("ambient", "polytropic_exponent")], ("=", 1.4)),
 ]
-FAMILIES = ("present", "offform", "unknown", "misset")
+# "combo": a first-family truth effect on a mis-set rig, each effect with one MISSET
+# change (their calibration and the effect must both be found; the effect's truth is the
+# present family's, so this family may be tuned on). A line delay with a larger pipe is
+# the hardest: the candidate and the calibration stand in for each other.
+COMBO = [("thermal", "capacity-15%"), ("area", "damping*1.5"), ("friction", "spring_valve_cd-25%"),
+         ("valve_dynamics", "spring_volume+15%"), ("line_delay", "pipe_volume+30%"), ("leak", "vent_cd-25%"),
+         ("sensor_lag", "polytropic_n=1.0")]
+FAMILIES = ("present", "offform", "unknown", "misset", "combo")
+APART = ("offform", "unknown", "misset")    # written apart from the candidates: measured on, never tuned
 
 
 def family_specs(family):
@@ -120,8 +130,12 @@ def family_specs(family):
     if family in ("offform", "unknown"):
         return [{"family": family, "form": n, "truth": e["effect"], "form_id": e["id"]}
                 for n, e in FORMS.items() if e["family"] == family]
-    return [{"family": "misset", "form": n, "truth": "none", "param": par, "keys": keys, "change": ch}
-            for n, par, keys, ch in MISSET]
+    misset = [{"family": "misset", "form": n, "truth": "none", "param": par, "keys": keys, "change": ch}
+              for n, par, keys, ch in MISSET]
+    if family == "combo":
+        by_name = {m["form"]: m for m in misset}
+        return [dict(by_name[m], family="combo", form=f"{e}@{m}", truth=e, form_id=None) for e, m in COMBO]
+    return misset
 
 
 def form_params(form, rng):
@@ -388,20 +402,22 @@ def param_named(names, param):
 
 def run_form_case(sim, top, seed, spec, index, extra, force=(None, None, "step", None)):
     """One case of another family (family_specs): a form of the second truth family,
-    or a mis-set rig with no effect."""
-    spec = dict(spec, form_id=spec.get("form_id", 0))
+    a mis-set rig with no effect, or one with a first-family effect (combo)."""
+    combo = spec["family"] == "combo"
+    spec = dict(spec, form_id=None if combo else spec.get("form_id", 0))
     system, kind = case_kind(seed, spec["slot"])
-    if spec["family"] == "misset":
+    if spec["family"] in ("misset", "combo"):
         system = "900lb"    # rigs that differ from thesis-900lb in one parameter (issue 21)
     system, kind = force[0] or system, force[1] or kind
     folder = os.path.join(top, f"{spec['family']}-seed{seed}-{index:02d}")
     logs = os.path.join(folder, "logs")
     os.makedirs(logs, exist_ok=True)
     rng = np.random.default_rng(seed * 1000 + spec["slot"])
-    params = form_params(spec["form"], rng) if spec["form_id"] else []
-    rig = rig_config(folder, system, seed, spec if spec["family"] == "misset" else None, force[3])
+    params = truth_params(spec["truth"], rng) if combo else form_params(spec["form"], rng) if spec["form_id"] else []
+    rig = rig_config(folder, system, seed, spec if spec["family"] in ("misset", "combo") else None, force[3])
+    effect = spec["truth"] if combo else "none"
     for name, steps, end in schedules(rng, system, force[2]):
-        write_truth_log(sim, os.path.join(logs, f"{name}.csv"), rig, system, steps, end, "none", params, kind,
+        write_truth_log(sim, os.path.join(logs, f"{name}.csv"), rig, system, steps, end, effect, params, kind,
                         rng, form_id=spec["form_id"])
     with open(os.path.join(folder, "label.sealed.json"), "w") as fh:
         json.dump({k: v for k, v in spec.items()} | {"truth_params": params, "seed": seed, "system": system,
@@ -417,13 +433,13 @@ def run_form_case(sim, top, seed, spec, index, extra, force=(None, None, "step",
          "ranking": [(x["effect"], round(x["shrink_pct"], 1)) for x in d["ranking"]],
          "calibration": d.get("calibration"), "calibrated": cal, "confidence": confidence_level(d),
          "unexplained": d.get("unexplained", d.get("not_explained"))}
-    if spec["family"] == "misset":
+    if spec["family"] in ("misset", "combo"):
         r["param"] = spec["param"]
         r["param_named"] = param_named(cal, spec["param"])
     # a mis-set rig's truth among the look-alikes is the calibration
     truth_in = spec["truth"] if spec["truth"] in fx.NAMES else ("calibration" if spec["family"] == "misset" else None)
     if r["lookalikes"] and truth_in:
-        r["after_experiment"] = (run_experiment(sim, folder, d, "none", params, system, kind, seed, extra, spec)
+        r["after_experiment"] = (run_experiment(sim, folder, d, effect, params, system, kind, seed, extra, spec)
                                  if truth_in in r["lookalikes"] else "truth not among them")
         r["verdict"] = r["after_experiment"]
     r["right"] = case_right(r)
@@ -433,11 +449,13 @@ def run_form_case(sim, top, seed, spec, index, extra, force=(None, None, "step",
 def case_right(r):
     """offform: the form's effect named; unknown: no catalogued effect named (none, or
     the tool's own "not explained"); misset: no effect named (and, when the diagnosis
-    calibrates, the parameter named)."""
+    calibrates, the parameter named); combo: the effect and the parameter named."""
     if r["family"] == "unknown":
         return r["verdict"] not in fx.NAMES and not any(e in fx.NAMES for e in r["effects"])
     if r["family"] == "misset":
         return r["verdict"] == "none" and (r["calibration"] is None or r["param_named"])
+    if r["family"] == "combo":
+        return r["verdict"] == r["truth"] and r["param_named"]
     return r["verdict"] == r["truth"]
 
 
@@ -469,7 +487,7 @@ def family_report(results):
         rs = [r for r in results if r["form"] == form]
         sh = [r["shrink_pct"] for r in rs if r["right"]]
         extra = ""
-        if fam == "misset":
+        if fam in ("misset", "combo"):
             extra = "  param named: " + ",".join("?" if r["calibration"] is None else
                                                  ("yes" if r["param_named"] else "no") for r in rs)
         lines.append(f"{form:<22}{rs[0]['truth']:<15}{sum(r['right'] for r in rs):>3}/{len(rs):<2} "
@@ -615,7 +633,8 @@ def main(argv=None):
     ap.add_argument("--family", choices=FAMILIES + ("apart", "all"), default="present",
                     help="truth family: present (the first family, truth.json; default), offform (forms "
                          "written from the physics alone, truth2.json), unknown (effects outside the "
-                         "catalogue), misset (one nominal parameter mis-set, no effect), apart (those three), all")
+                         "catalogue), misset (one nominal parameter mis-set, no effect), apart (those three), "
+                         "combo (a present effect on a mis-set rig), all")
     ap.add_argument("--forms", help="offform/unknown/misset: comma-separated subset of forms")
     ap.add_argument("--report", metavar="FILE", help="print the family reports of a saved --json again and stop")
     ap.add_argument("--write-confidence", metavar="FILE",
@@ -682,7 +701,7 @@ def main(argv=None):
 
 def main_families(a):
     """--family other than present (all: present first, as main runs it, then the rest)."""
-    fams = {"all": list(FAMILIES), "apart": [f for f in FAMILIES if f != "present"]}.get(a.family, [a.family])
+    fams = {"all": list(FAMILIES), "apart": list(APART)}.get(a.family, [a.family])
     top = a.keep or tempfile.mkdtemp(prefix="leveler-blindtest-")
     os.makedirs(top, exist_ok=True)
     rc, out = 0, {}
