@@ -183,13 +183,19 @@ def _carried(space, values, other):
 
 class Calibrated:
     """Residuals of the runs under a parameter vector: the C loader reads a
-    written config (one file per vector, kept for the caches keyed by path)."""
+    written config (one file per vector, kept for the caches keyed by path).
+    effect: (name, {param: value}) held in the model while the values are fitted
+    (calibration under an effect already found), else None."""
 
-    def __init__(self, sim, space, runs, mode, folder, start_shifts=None):
+    def __init__(self, sim, space, runs, mode, folder, start_shifts=None, effect=None):
         self.sim, self.space, self.runs, self.mode, self.folder = sim, space, runs, mode, folder
         self.start_shifts = start_shifts
+        self.effect = effect
         self.own = {}        # config name -> Space of runs with their own config
         self.nsim = 0
+
+    def without_effect(self):
+        return Calibrated(self.sim, self.space, self.runs, self.mode, self.folder, self.start_shifts)
 
     def config(self, u, space=None):
         """The config file of the parameters at u: the space's own values, or for
@@ -227,7 +233,7 @@ class Calibrated:
 
     def data_residual(self, u):
         p = self.problem(u)
-        r = p.residual_vector(None, {})
+        r = p.residual_vector(*(self.effect or (None, {})))
         self.nsim += p.nsim
         return r
 
@@ -236,7 +242,7 @@ class Calibrated:
 
     def gap(self, u):
         p = self.problem(u)
-        g = p.gap(None, {})
+        g = p.gap(*(self.effect or (None, {})))
         self.nsim += p.nsim
         return g
 
@@ -441,7 +447,7 @@ def over_runs(cal, u, chosen, max_nfev=12):
         return []
     out = []
     for k in range(len(cal.runs)):
-        sub = Calibrated(cal.sim, cal.space, [cal.runs[k]], cal.mode, cal.folder)
+        sub = Calibrated(cal.sim, cal.space, [cal.runs[k]], cal.mode, cal.folder, effect=cal.effect)
         out.append(cal.space.values(fit_subset(sub, u, chosen, max_nfev)))
         cal.nsim += sub.nsim
     return out
@@ -483,13 +489,15 @@ def supported(sim):
     return hasattr(sim, "check_config")
 
 
-def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progress=print, max_nfev=12, jobs=1):
+def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progress=print, max_nfev=12, jobs=1,
+              effect=None):
     """The calibration stage. Returns its report (diagnosis.json's `calibration`)
-    with `config_file`: the calibrated config when kept, else the user's."""
+    with `config_file`: the calibrated config when kept, else the user's. effect:
+    (name, params) held in the model (the gaps before and after include it)."""
     t0 = time.perf_counter()
     space = Space(config_file, leveler_config.resolved(config_file))
-    cal = Calibrated(sim, space, calib, mode, folder)
-    hold = Calibrated(sim, space, holdout, mode, folder, fit.start_shifts(holdout))
+    cal = Calibrated(sim, space, calib, mode, folder, effect=effect)
+    hold = Calibrated(sim, space, holdout, mode, folder, fit.start_shifts(holdout), effect=effect)
     progress(f"      fitting {len(space.params)} nominal parameters of {space.name} on {len(calib)} run(s)")
     u, chosen, singles = fit_calibration(cal, max_nfev, progress, jobs)
     before_cal, after_cal = cal.gap(space.u0), cal.gap(u)

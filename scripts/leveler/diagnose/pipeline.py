@@ -15,6 +15,7 @@ from . import certainty
 from . import effects as fx
 from . import fit
 from . import result as result_mod
+from .confidence import UNEXPLAINED_NOISE
 from .context import Ask, Basis, Verdict
 from .evidence_figures import PublishedFigures
 from .evidence_runs import RunLogs
@@ -51,6 +52,15 @@ def _diagnose(ask, evidence, calib, holdout, folder):
                                                                                   ask.progress):
         # the calibration stands: an effect must explain what it leaves, fitted with it
         basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
+    elif calibration and calibration.get("superseded_by") and evidence.fits_pairs and \
+            _effect_leaves_much(as_given[0], basis.threshold, noise):
+        # the calibration was kept, then set aside for the effect (effect_first)
+        again = calibration_path.under_effect(ask, as_given[0], calib, holdout, folder, threshold)
+        if again:
+            again[0]["alone"] = {k: calibration[k] for k in ("why", "holdout_gap", "shrink_pct")}
+            calibration, cal_config, cal_runs = again
+            handles = calibration_path.beside_effects(calibration, as_given)
+            basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
     verdict = _verdict(ask, evidence, basis, noise, gate)
     if basis.calibrated and verdict.finding:
         basis, verdict = _effects_after_all(ask, evidence, calibration, basis, verdict, given, noise, gate)
@@ -67,6 +77,12 @@ def _diagnose(ask, evidence, calib, holdout, folder):
     model = result_mod.model_of(ask.config, calibration, handles, final_v, verdict.top(basis.ranking))
     result = result_mod.build(ask, basis, verdict, where, calibration, sure, look, noise, ba, model, t0)
     return result.as_dict(), {"holdout": basis.holdout, "nominal": user_nominal_hold, "augmented": aug_hold}
+
+
+def _effect_leaves_much(best, threshold, noise):
+    """The leading effect explains a share worth naming but leaves a held-out gap well
+    above the logs' noise (confidence.UNEXPLAINED_NOISE noise gaps)."""
+    return best["shrink_pct"] >= threshold and noise > 0 and best["holdout_gap"] > UNEXPLAINED_NOISE * noise
 
 
 def _where_step(ask, evidence, calib, holdout):
