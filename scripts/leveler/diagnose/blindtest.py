@@ -635,7 +635,7 @@ def main(argv=None):
                          "written from the physics alone, truth2.json), unknown (effects outside the "
                          "catalogue), misset (one nominal parameter mis-set, no effect), apart (those three), "
                          "combo (a present effect on a mis-set rig), all")
-    ap.add_argument("--forms", help="offform/unknown/misset: comma-separated subset of forms")
+    ap.add_argument("--forms", help="offform/unknown/misset/combo: comma-separated subset of forms")
     ap.add_argument("--report", metavar="FILE", help="print the family reports of a saved --json again and stop")
     ap.add_argument("--write-confidence", metavar="FILE",
                     help="with --report or a family run: write each confidence level's right / cases over the "

@@ -30,25 +30,30 @@ def calibration_step(ask, calib, holdout, folder, threshold):
         return None, ask.config, (calib, holdout)
     ask.progress("[2/4] calibrating the config's nominal parameters before blaming an effect")
     rep = calibrate.calibrate(ask.sim, config_path(ask.config), calib, holdout, ask.mode, folder, threshold,
-                              ask.progress, jobs=ask.jobs or min(os.cpu_count() or 1, 2))
+                              ask.progress, jobs=_jobs(ask))
     runs = rep.pop("runs")
     return rep, rep.pop("config_file"), runs
 
 
-def under_effect(ask, best, calib, holdout, folder, threshold):
+def _jobs(ask):
+    """Processes for the calibration's trials: the asked number, else up to two."""
+    return ask.jobs or min(os.cpu_count() or 1, 2)
+
+
+def under_effect(ask, best, first, calib, holdout, folder, threshold):
     """The leading effect (fitted on the config as given) leaves the held-out runs far
     from explained: a mis-set value beside it? The values are calibrated again with
     the effect in the model (its fit as given, held); kept when they close half of
     what the effect leaves (confidence.EXPLAINS_PCT: less explains nothing; an off-form
     effect's misfit is otherwise taken up by values that are not wrong) and more than
-    the noise gate. The
-    report then describes the values alone (gaps without the effect), and the
-    candidates are fitted with them (calibrated_basis). Returns (report, config, runs)
-    or None."""
+    the noise gate. The report then describes the values alone (gaps without the
+    effect; `first`, the calibration without it, has them at the config's values), and
+    the candidates are fitted with them (calibrated_basis). Returns (report, config,
+    runs) or None."""
     ask.progress(f"      {best['effect']} leaves the held-out runs unexplained: the nominal values "
                  f"calibrated again with {best['effect']} in the model")
     rep = calibrate.calibrate(ask.sim, config_path(ask.config), calib, holdout, ask.mode, folder,
-                              max(threshold, EXPLAINS_PCT), ask.progress, jobs=ask.jobs or min(os.cpu_count() or 1, 2),
+                              max(threshold, EXPLAINS_PCT), ask.progress, jobs=_jobs(ask),
                               effect=(best["effect"], candidates.values_of(best)))
     runs, config = rep.pop("runs"), rep.pop("config_file")
     if not (rep["kept"] and rep["moved"]):
@@ -56,8 +61,8 @@ def under_effect(ask, best, calib, holdout, folder, threshold):
     cal, hold, u, chosen = rep["handles"]
     cal0, hold0 = cal.without_effect(), hold.without_effect()
     rep.update(under_effect={"effect": best["effect"], "holdout_gap": rep["holdout_gap"]},
-               calibration_gap={"before": cal0.gap(cal.space.u0), "after": cal0.gap(u)},
-               holdout_gap={"before": hold0.gap(hold.space.u0), "after": hold0.gap(u)},
+               calibration_gap={"before": first["calibration_gap"]["before"], "after": cal0.gap(u)},
+               holdout_gap={"before": first["holdout_gap"]["before"], "after": hold0.gap(u)},
                handles=(cal0, hold0, u, chosen),
                why=f"calibrated with {best['effect']} in the model: " + rep["why"])
     rep["shrink_pct"] = shrink(rep["holdout_gap"]["before"], rep["holdout_gap"]["after"])

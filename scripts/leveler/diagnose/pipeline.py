@@ -55,7 +55,7 @@ def _diagnose(ask, evidence, calib, holdout, folder):
     elif calibration and calibration.get("superseded_by") and evidence.fits_pairs and \
             _effect_leaves_much(as_given[0], basis.threshold, noise):
         # the calibration was kept, then set aside for the effect (effect_first)
-        again = calibration_path.under_effect(ask, as_given[0], calib, holdout, folder, threshold)
+        again = calibration_path.under_effect(ask, as_given[0], calibration, calib, holdout, folder, threshold)
         if again:
             again[0]["alone"] = {k: calibration[k] for k in ("why", "holdout_gap", "shrink_pct")}
             calibration, cal_config, cal_runs = again
