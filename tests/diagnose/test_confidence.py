@@ -36,3 +36,29 @@ def test_most_of_a_large_gap_closed_is_explained():
 
 def test_a_gap_within_three_noise_gaps_is_never_a_finding():
     assert finding(10.0, 2.9) is None
+
+
+RANKING = [{"effect": "valve_dynamics", "shrink_pct": 6.0}, {"effect": "leak", "shrink_pct": 2.0}]
+
+
+def level(cal_gap_noise, moved):
+    return confidence.assess([], RANKING, cal_gap_noise, 1.0, None, None, None, moved=moved)
+
+
+def test_none_within_the_noise_is_sure_with_one_part_moved():
+    # a mis-set damper (both coefficients: one part), calibrated to 0.97 noise gaps
+    a = level(0.97, {"platform": ["damping_up", "damping_down"]})
+    assert a["level"] == "sure" and a["set"] == []
+
+
+def test_none_within_the_noise_is_likely_with_two_parts_moved():
+    # combo valve_dynamics@spring_volume+15 %: the vent's Cd and the spring's volume
+    # moved, 1.25 noise gaps left, the truth a valve effect beside the volume
+    a = level(1.25, {"vent_valve": ["vent_valve_cd"], "spring": ["spring_volume"]})
+    assert a["level"] == "likely"
+    assert a["set"] == ["calibration: vent_valve_cd", "calibration: spring_volume", "valve_dynamics"]
+    assert "2 parts" in a["why"]
+
+
+def test_none_above_the_noise_is_likely_whatever_moved():
+    assert level(2.0, {"spring": ["spring_volume"]})["level"] == "likely"

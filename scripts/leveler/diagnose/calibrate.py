@@ -547,9 +547,10 @@ def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progres
 JOINT_NFEV = 20
 
 
-def joint_fit(cal, hold, chosen, effect, u_effect):
+def joint_fit(cal, hold, chosen, effect, u_effect, start=None):
     """An effect and the calibration's chosen values fitted together on the calibration
-    runs, from the effect's own fit and the config's values: a real effect keeps its
+    runs, from the effect's own fit and the config's values (or start's: an effect
+    fitted on the calibrated model starts from its values): a real effect keeps its
     parameters and leaves the values near the config's; an effect standing in for a
     mis-set value gives way to it. Returns {effect, params, u, calibration_gap, holdout_gap}."""
     d = len(effect.params)
@@ -566,7 +567,8 @@ def joint_fit(cal, hold, chosen, effect, u_effect):
         r = p.residual_vector(effect.name, params)
         cal.nsim += p.nsim
         return np.concatenate([r, cal.space.prior(v)])
-    x0 = np.concatenate([np.asarray(u_effect, dtype=float), np.asarray(cal.space.u0)[idx]])
+    x0 = np.concatenate([np.asarray(u_effect, dtype=float),
+                         np.asarray(cal.space.u0 if start is None else start, dtype=float)[idx]])
     res = least_squares(fun, x0, bounds=(np.zeros(len(x0)), np.ones(len(x0))), diff_step=0.02,
                         x_scale=np.full(len(x0), 0.3), max_nfev=JOINT_NFEV, method="trf")
     v, params = split(res.x)

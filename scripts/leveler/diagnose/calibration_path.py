@@ -129,33 +129,74 @@ def set_aside(calibration, effect, g_fx, why, progress):
 def _joint_step(handles, as_given, fits, gaps, progress):
     """The best effects alone, refitted together with the calibration's chosen values
     (calibrate.joint_fit), scored against the calibrated model's held-out gap; the
-    other candidates keep their scores alone. Returns (the ranking over the calibrated
-    model, the vector of the leading joint fit or of the calibration)."""
-    cal, hold, u, chosen = handles
+    other candidates keep their scores alone (on_calibrated_model replaces them).
+    Returns (the ranking over the calibrated model, {effect: vector of its joint fit})."""
     ranking, vectors = [], {}
     for r in as_given:
         e = dict(r, shrink_pct=shrink(gaps[1], r["holdout_gap"]), joint=False)
         ranking.append(e)
     for r in sorted(as_given, key=lambda x: x["holdout_gap"])[:JOINT_CANDIDATES]:
-        j = calibrate.joint_fit(cal, hold, chosen, fx.get(r["effect"]), fits[r["effect"]]["unit"])
         e = next(x for x in ranking if x["effect"] == r["effect"])
-        vectors[r["effect"]] = j["u"]
-        e.update(holdout_gap=j["holdout_gap"], calibration_gap=j["calibration_gap"], joint=True,
-                 shrink_pct=shrink(gaps[1], j["holdout_gap"]),
-                 params={k: dict(v, value=j["params"][k]) for k, v in r["params"].items()})
-        progress(f"      {r['effect']:<15} with the calibration: held-out gap {j['holdout_gap']:.3f} "
-                 f"(calibrated {gaps[1]:.3f}, {e['shrink_pct']:+.1f}%)")
+        vectors[r["effect"]] = _joint(handles, e, fits[r["effect"]]["unit"], gaps, progress)
     candidates.rank(ranking)
-    return ranking, vectors.get(ranking[0]["effect"], u)
+    return ranking, vectors
+
+
+def _joint(handles, e, unit, gaps, progress, start=None):
+    """Ranking entry e refitted together with the calibration's chosen values, from
+    its fit's unit vector and the values of `start` (the config's when None); e is
+    updated to the joint fit. Returns the joint fit's vector of values."""
+    cal, hold, u, chosen = handles
+    j = calibrate.joint_fit(cal, hold, chosen, fx.get(e["effect"]), unit, start)
+    e.update(holdout_gap=j["holdout_gap"], calibration_gap=j["calibration_gap"], joint=True,
+             shrink_pct=shrink(gaps[1], j["holdout_gap"]),
+             params={k: dict(v, value=j["params"][k]) for k, v in e["params"].items()})
+    progress(f"      {e['effect']:<15} with the calibration: held-out gap {j['holdout_gap']:.3f} "
+             f"(calibrated {gaps[1]:.3f}, {e['shrink_pct']:+.1f}%)")
+    return j["u"]
+
+
+def on_calibrated_model(ask, ranking, vectors, handles, runs, gaps, noise):
+    """The candidates not fitted with the calibration, fitted alone on the calibrated
+    model: an effect is named for what the calibration leaves, and one that did
+    nothing on the config as given (where a mis-set value hid it) can explain that.
+    The best of them that lowers the calibrated model's held-out gap is then fitted
+    with the calibration's values (from theirs). Only when the calibrated model
+    leaves more than the noise gate above the logs' noise (below it nothing can be
+    named). Returns the ranking with their entries scored there (`on_calibrated`);
+    vectors gains the joint fit's."""
+    rest = [r["effect"] for r in ranking if not r.get("joint")]
+    if not rest or gaps[1] - noise < fit.NOISE_GAIN * noise:
+        return ranking
+    calib, holdout = runs
+    ask.progress(f"      {len(rest)} more candidate(s) fitted alone on the calibrated model")
+
+    def on_fit(name, r):
+        ask.progress(f"      {name:<15} on the calibrated model: held-out gap {r['holdout_gap']:.3f} "
+                     f"(calibrated {gaps[1]:.3f}, {shrink(gaps[1], r['holdout_gap']):+.1f}%)")
+
+    res = fit.fit_all(ask.spec, handles[0].config(handles[2]), calib, holdout, ask.mode, rest, ask.jobs, on_fit,
+                      ask.fit_opts)
+    fresh = {e["effect"]: dict(e, joint=False, on_calibrated=True)
+             for e in candidates.scored(rest, res, *gaps)}
+    best = min(fresh.values(), key=lambda e: e["holdout_gap"])
+    if best["holdout_gap"] < gaps[1]:
+        vectors[best["effect"]] = _joint(handles, best, res[best["effect"]]["unit"], gaps, ask.progress,
+                                         start=handles[2])
+    out = [fresh.get(r["effect"], r) for r in ranking]
+    candidates.rank(out)
+    return out
 
 
 def calibrated_basis(ask, evidence, calibration, handles, runs, basis):
     """The calibration stands: the basis the candidates are judged on becomes the
-    calibrated model (its runs, gaps, joint fits); the threshold and what is left
-    unexplained are measured against it."""
+    calibrated model (its runs, gaps, joint fits, the other candidates fitted on it);
+    the threshold and what is left unexplained are measured against it."""
     calib, holdout = runs
     gaps = (calibration["calibration_gap"]["after"], calibration["holdout_gap"]["after"])
-    ranking, u_top = _joint_step(handles, basis.ranking, basis.fits, gaps, ask.progress)
+    ranking, vectors = _joint_step(handles, basis.ranking, basis.fits, gaps, ask.progress)
+    ranking = on_calibrated_model(ask, ranking, vectors, handles, runs, gaps, evidence.noise_gap(holdout))
+    u_top = vectors.get(ranking[0]["effect"], handles[2])
     work = handles[0].config(u_top)
     cal_problem = fit.Problem(ask.sim, work, calib, ask.mode)
     hold_problem = fit.Problem(ask.sim, handles[0].config(handles[2]), holdout, ask.mode, fit.start_shifts(holdout))

@@ -11,7 +11,8 @@ def values_of(entry):
     return {k: v["value"] for k, v in entry["params"].items()}
 
 
-def _rank_fits(candidates, fits, nominal_cal_gap, nominal_hold_gap):
+def scored(candidates, fits, nominal_cal_gap, nominal_hold_gap):
+    """Ranking entries of fitted candidates (fit.fit_all results), shrink against the given gaps."""
     ranking = []
     for name in candidates:
         r = fits[name]
@@ -55,7 +56,7 @@ def effects_step(ask, evidence, calib, holdout, hold_problem, gaps):
 
     fits = fit.fit_all(ask.spec, ask.config, calib, holdout, ask.mode, ask.candidates, ask.jobs, on_fit,
                        ask.fit_opts)
-    ranking = _rank_fits(ask.candidates, fits, nominal_cal_gap, nominal_hold_gap)
+    ranking = scored(ask.candidates, fits, nominal_cal_gap, nominal_hold_gap)
     evidence.signatures(holdout, hold_problem, ranking)
     rank(ranking)
     return ranking, fits

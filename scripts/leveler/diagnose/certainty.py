@@ -59,6 +59,16 @@ def alike_names(calibration):
     return list(dict.fromkeys(list(cal["moved"]) + [a["name"] for a in cal["alike"]]))
 
 
+def moved_parts(calibration):
+    """The kept calibration's moved values by part of the rig (config section): {section: [name, ...]}."""
+    cal = calibration or {}
+    out = {}
+    for p in cal.get("parameters", []) if cal.get("kept") else []:
+        if p["name"] in cal.get("moved", []):
+            out.setdefault(p["section"], []).append(p["name"])
+    return out
+
+
 def confidence_step(ask, evidence, basis, verdict, look, calibration, cal_config, as_given, noise):
     """How sure the verdict is (confidence.py), and the experiment that would separate
     what it cannot: the calibration from its rival effect, or two effects. Returns
@@ -67,7 +77,7 @@ def confidence_step(ask, evidence, basis, verdict, look, calibration, cal_config
     effects = verdict.effects
     sure = confidence.assess(effects, basis.ranking, basis.gaps[1], noise,
                              look["lookalikes"] and look["lookalikes"]["group"], look["experiment"],
-                             verdict.finding, rival, alike_names(calibration))
+                             verdict.finding, rival, alike_names(calibration), moved_parts(calibration))
     designs = evidence.designs_experiments
     if designs and rival and not look["experiment"] and not ask.design_pair:
         look = dict(look, experiment=_rival_experiment(ask.sim, ask.config, basis.calib, cal_config, as_given,

@@ -33,6 +33,12 @@ UNEXPLAINED_NOISE = 3.0     # "above noise": a held-out gap this many times the 
 PARTLY_PCT = 200.0 / 3.0
 LEFT_NOISE = 10.0
 NONE_QUIET = 1.3            # a `none` is sure when what is left is within 1.3 noise gaps (the true model: ~1)
+# ... and the calibration moved values of at most this many parts of the rig (config
+# sections: the damper's two coefficients are one part): each value it moves can take up
+# part of an effect, and with two parts an effect beside one mis-set value explained the
+# logs as well (a valve whose Cd falls with the pressure ratio calibrated as the vent's
+# Cd beside a mis-set spring volume, both within the noise).
+NONE_SURE_PARTS = 1
 
 
 def _measured():
@@ -77,13 +83,14 @@ def _contenders(ranking, lead_pct, pts):
 
 
 def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained_finding, rival=None,
-           alike_values=None):
+           alike_values=None, moved=None):
     """{level, probability, set, why, experiment}. effects: the named effect(s)
     ([] for none); ranking: candidates by held-out shrink over the calibrated model;
     rival: an effect that, on the config as given, explains the held-out runs as
     well as the kept calibration (pipeline._effect_first); alike_values: the kept
     calibration's moved values and the others that alone explain the runs as well
-    as its first ([name, ...], certainty.alike_names)."""
+    as its first ([name, ...], certainty.alike_names); moved: the kept calibration's
+    moved values by part of the rig ({section: [name, ...]}, certainty.moved_parts)."""
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
     margin = best["shrink_pct"] - runner["shrink_pct"] if runner else 100.0
@@ -100,6 +107,11 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
         level, cset = "unsure", ["calibration: " + n for n in alike_values]
         why = (f"no effect; which of {', '.join(alike_values)} is set wrong these logs cannot tell: "
                f"values outside the calibration's explain the held-out runs about as well alone")
+    elif not effects and noise > 0 and cal_gap <= NONE_QUIET * noise and len(moved or {}) > NONE_SURE_PARTS:
+        names = [n for part in moved.values() for n in part]
+        level, cset = "likely", ["calibration: " + n for n in names] + [best["effect"]]
+        why = (f"the calibrated model is within the logs' noise, but it moved values of {len(moved)} parts "
+               f"({', '.join(names)}): an effect beside fewer mis-set values may explain the logs as well")
     elif not effects:
         quiet = noise > 0 and cal_gap <= NONE_QUIET * noise
         level = "sure" if quiet else "likely"
