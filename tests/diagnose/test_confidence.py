@@ -1,6 +1,9 @@
-"""The 'not explained by any candidate' rule (confidence.unexplained) on the figures of
-cases the blind test measured: a gap a candidate only partly closes is not named."""
-from leveler.diagnose import confidence
+"""How sure a verdict is, on the figures of cases the blind test measured: the 'not
+explained by any candidate' rule (confidence.unexplained: a gap a candidate only partly
+closes is not named), a `none` within the noise (sure only when one part of the rig was
+calibrated), and a rival of the calibration alone outdone by the effect named on it
+(calibration_path.rival_outdone)."""
+from leveler.diagnose import calibration_path, confidence
 
 PHASES = {"settle": {"before": 20.6}, "climb": {"before": 18.8}, "stuck_low": {"before": 6.2},
           "return": {"before": 1.0}}
@@ -62,3 +65,33 @@ def test_none_within_the_noise_is_likely_with_two_parts_moved():
 
 def test_none_above_the_noise_is_likely_whatever_moved():
     assert level(2.0, {"spring": ["spring_volume"]})["level"] == "likely"
+
+
+def _rival_case(top_gap):
+    # combo sensor_lag@polytropic_n=1.0 seed 2: the calibration alone 1.811, line_delay
+    # alone on the config as given 1.994 (alike); noise gap 0.23, gate 0.116
+    cal = {"rival": {"effect": "line_delay", "moved": ["polytropic_exponent"], "effect_gap": 1.994,
+                     "calibration_gap": 1.811}}
+    calibration_path.rival_outdone(cal, {"effect": "sensor_lag", "holdout_gap": top_gap}, 0.116,
+                                   lambda m: None)
+    return cal
+
+
+def test_a_rival_of_the_calibration_alone_is_outdone_by_the_effect_named_on_it():
+    cal = _rival_case(0.338)
+    assert "rival" not in cal
+    assert cal["rival_outdone"]["named"] == "sensor_lag" and cal["rival_outdone"]["model_gap"] == 0.338
+    # a verdict with no rival is judged on its own margin again
+    a = confidence.assess(["sensor_lag"], [{"effect": "sensor_lag", "shrink_pct": 81.4},
+                                           {"effect": "valve_dynamics", "shrink_pct": 14.1}],
+                          1.811, 0.23, None, None, None, cal.get("rival"))
+    assert a["level"] == "sure"
+
+
+def test_a_rival_still_alike_to_the_model_that_stands_stays():
+    # within 10 % of the rival's gap: still its look-alike
+    assert "rival" in _rival_case(1.85)
+    # better by more than 10 %, but by less than the noise gate
+    cal = {"rival": {"effect": "leak", "moved": ["pipe_volume"], "effect_gap": 0.30, "calibration_gap": 0.29}}
+    calibration_path.rival_outdone(cal, {"effect": "area", "holdout_gap": 0.25}, 0.116, lambda m: None)
+    assert "rival" in cal

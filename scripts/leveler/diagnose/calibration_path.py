@@ -114,6 +114,23 @@ def _record_rival(calibration, effect, g_fx, g_cal):
                             "effect_gap": g_fx, "calibration_gap": g_cal}
 
 
+def rival_outdone(calibration, top, gate, progress):
+    """The calibration stood with a rival (an effect alone on the config as given that
+    explains the held-out runs about as well as the calibration alone), and an effect
+    is now named on top of the calibration (`top`, its ranking entry). The rival is a
+    look-alike of the calibration alone, not of the model that stands: when that
+    model's held-out gap is below the rival's by more than the alike share and the
+    noise gate, the rival is no look-alike (kept as `rival_outdone`)."""
+    rival = calibration.get("rival")
+    if not rival or top is None:
+        return
+    g_top, g_fx = top["holdout_gap"], rival["effect_gap"]
+    if g_top < (1.0 - CALIBRATION_FIRST_PCT / 100.0) * g_fx and g_fx - g_top >= gate:
+        calibration["rival_outdone"] = dict(calibration.pop("rival"), model_gap=g_top, named=top["effect"])
+        progress(f"      the calibration with {top['effect']} leaves a held-out gap of {g_top:.3f}, "
+                 f"{rival['effect']} alone {g_fx:.3f}: no longer its look-alike")
+
+
 def set_aside(calibration, effect, g_fx, why, progress):
     """The calibration is not kept: `effect` (one or a pair, "a+b") leaving the held-out
     gap g_fx is named instead; the report keeps the calibration's figures and says why."""

@@ -65,6 +65,8 @@ def _diagnose(ask, evidence, calib, holdout, folder):
     if basis.calibrated and verdict.finding:
         basis, verdict = _effects_after_all(ask, evidence, calibration, basis, verdict, given, noise, gate)
     final_v = None      # the calibrated vector the final figures run on; None off the calibration path
+    if basis.calibrated and verdict.named:
+        calibration_path.rival_outdone(calibration, verdict.top(basis.ranking), gate, ask.progress)
     if basis.calibrated:
         hold_problem, final_v = calibration_path.settle(ask, calibration, handles, basis, verdict.named)
         basis = replace(basis, hold_problem=hold_problem)
