@@ -62,7 +62,7 @@ def _diagnose(ask, evidence, calib, holdout, folder):
             handles = calibration_path.beside_effects(calibration, as_given)
             basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
     verdict = _verdict(ask, evidence, basis, noise, gate)
-    if basis.calibrated and verdict.finding:
+    if basis.calibrated and (verdict.finding or _named_leaves_much(verdict, basis, noise)):
         basis, verdict = _effects_after_all(ask, evidence, calibration, basis, verdict, given, noise, gate)
     final_v = None      # the calibrated vector the final figures run on; None off the calibration path
     if basis.calibrated and verdict.named:
@@ -85,6 +85,14 @@ def _effect_leaves_much(best, threshold, noise):
     """The leading effect explains a share worth naming but leaves a held-out gap well
     above the logs' noise (confidence.UNEXPLAINED_NOISE noise gaps)."""
     return best["shrink_pct"] >= threshold and noise > 0 and best["holdout_gap"] > UNEXPLAINED_NOISE * noise
+
+
+def _named_leaves_much(verdict, basis, noise):
+    """An effect named on the calibrated model still leaves a held-out gap above
+    confidence.UNEXPLAINED_NOISE noise gaps: part of the gap is neither its nor the
+    values' (two effects, the values bent to mimic one of them)."""
+    top = verdict.top(basis.ranking) if verdict.named else None
+    return top is not None and noise > 0 and top["holdout_gap"] > UNEXPLAINED_NOISE * noise
 
 
 def _where_step(ask, evidence, calib, holdout):
@@ -127,18 +135,22 @@ def _verdict(ask, evidence, basis, noise, gate):
 
 def _effects_after_all(ask, evidence, calibration, basis, verdict, given, noise, gate):
     """The calibration stood against the best single effect but leaves the held-out
-    runs unexplained: its nominal values bent to mimic part of what two effects do
-    (a pipe volume doubled for a pipe delay). The effects on the config as given,
-    a pair included, are judged as if there had been no calibration; when they are
-    named and leave a smaller held-out gap than the calibration did, they stand and
-    the calibration is set aside. Returns the (basis, verdict) that stand."""
-    ask.progress("      the calibrated model leaves the held-out runs unexplained: "
-                 "the effects on the config as given, pairs included")
+    runs unexplained, alone or with the effect named on it: its nominal values bent
+    to mimic part of what two effects do (a pipe volume doubled for a pipe delay;
+    the compressor, the vent and n moved for a thermal effect beside friction). The
+    effects on the config as given, a pair included, are judged as if there had been
+    no calibration; when they are named and leave a smaller held-out gap than the
+    calibrated model (with its named effect) did, they stand and the calibration is
+    set aside. Returns the (basis, verdict) that stand."""
+    named = verdict.top(basis.ranking) if verdict.named else None
+    g_cal = named["holdout_gap"] if named else calibration["holdout_gap"]["after"]
+    ask.progress(f"      the calibrated model{' with ' + named['effect'] if named else ''} leaves the held-out "
+                 f"runs unexplained ({g_cal:.3f}): the effects on the config as given, pairs included")
     alt = _verdict(ask, evidence, given, noise, gate)
     top = alt.top(given.ranking)
-    g_cal = calibration["holdout_gap"]["after"]
     if top is None or alt.finding or not top["holdout_gap"] < g_cal:
-        ask.progress("      no better on the config as given: the calibration stands, unexplained")
+        ask.progress("      no better on the config as given: the calibration stands"
+                     + (f" with {named['effect']}" if named else ", unexplained"))
         return basis, verdict
     calibration_path.set_aside(calibration, fx.combine(alt.effects), top["holdout_gap"],
                                "explains what the calibration leaves unexplained; calibration not kept",
