@@ -53,7 +53,7 @@ def _diagnose(ask, evidence, calib, holdout, folder):
         # the calibration stands: an effect must explain what it leaves, fitted with it
         basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
     elif calibration and calibration.get("superseded_by") and evidence.fits_pairs and \
-            _effect_leaves_much(as_given[0], basis.threshold, noise):
+            as_given[0]["shrink_pct"] >= basis.threshold and _leaves_much(as_given[0], noise):
         # the calibration was kept, then set aside for the effect (effect_first)
         again = calibration_path.under_effect(ask, as_given[0], calibration, calib, holdout, folder, threshold)
         if again:
@@ -62,7 +62,7 @@ def _diagnose(ask, evidence, calib, holdout, folder):
             handles = calibration_path.beside_effects(calibration, as_given)
             basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
     verdict = _verdict(ask, evidence, basis, noise, gate)
-    if basis.calibrated and (verdict.finding or _named_leaves_much(verdict, basis, noise)):
+    if basis.calibrated and (verdict.finding or verdict.named and _leaves_much(verdict.top(basis.ranking), noise)):
         basis, verdict = _effects_after_all(ask, evidence, calibration, basis, verdict, given, noise, gate)
     final_v = None      # the calibrated vector the final figures run on; None off the calibration path
     if basis.calibrated and verdict.named:
@@ -81,18 +81,10 @@ def _diagnose(ask, evidence, calib, holdout, folder):
     return result.as_dict(), {"holdout": basis.holdout, "nominal": user_nominal_hold, "augmented": aug_hold}
 
 
-def _effect_leaves_much(best, threshold, noise):
-    """The leading effect explains a share worth naming but leaves a held-out gap well
-    above the logs' noise (confidence.UNEXPLAINED_NOISE noise gaps)."""
-    return best["shrink_pct"] >= threshold and noise > 0 and best["holdout_gap"] > UNEXPLAINED_NOISE * noise
-
-
-def _named_leaves_much(verdict, basis, noise):
-    """An effect named on the calibrated model still leaves a held-out gap above
-    confidence.UNEXPLAINED_NOISE noise gaps: part of the gap is neither its nor the
-    values' (two effects, the values bent to mimic one of them)."""
-    top = verdict.top(basis.ranking) if verdict.named else None
-    return top is not None and noise > 0 and top["holdout_gap"] > UNEXPLAINED_NOISE * noise
+def _leaves_much(entry, noise):
+    """A candidate (ranking entry) leaves a held-out gap well above the logs' noise
+    (confidence.UNEXPLAINED_NOISE noise gaps): part of the gap is not its."""
+    return noise > 0 and entry["holdout_gap"] > UNEXPLAINED_NOISE * noise
 
 
 def _where_step(ask, evidence, calib, holdout):
