@@ -8,12 +8,13 @@
  * against their limit, and the worst rig after it; writes DIR/family.json
  * and the rigs' INI files in DIR.
  *
- *   leveler-ctlbench-family [--out DIR] [--configs DIR] [--rigs N] [--seed S]
+ *   leveler-ctlbench-family [--out DIR] [--configs DIR] [--rigs N] [--seed S] [--logs]
  *
  * Exit status: 0 done (figures reported, not judged), 1 a run failed, 2 bad input.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <stdbool.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -61,20 +62,31 @@ static double ratio(const ctlbench_step *a3, const ctlbench_step *lim)
     return a3->return_s / (lim->return_s > LOAD_S ? lim->return_s : LOAD_S);
 }
 
+/* DIR/<name>-<who>.csv when the logs are asked for, else NULL (no log written). */
+static const char *log_path(char *buf, size_t len, const char *out, const char *name, const char *who, bool logs)
+{
+    if (!logs)
+        return NULL;
+    snprintf(buf, len, "%s/%s-%s.csv", out, name, who);
+    return buf;
+}
+
 /* The rig after commissioning: the routine, then the thesis steps, against their limit. */
-static int run_commissioned(const char *out, rig_result *r, runlog_row *rows, size_t cap, char *err,
+static int run_commissioned(const char *out, bool logs, rig_result *r, runlog_row *rows, size_t cap, char *err,
                             size_t err_len)
 {
     ctlbench_scenario sc;
-    char name[CTLBENCH_NAME_MAX];
+    char name[CTLBENCH_NAME_MAX], lp[1024];
     snprintf(name, sizeof name, "%.*s-commissioned", (int)(strlen(r->rig.file) - 4), r->rig.file);
     ctlbench_thesis_commissioned(&sc, name, r->rig.file, NOISE_COUNTS, 104u);
     ctlbench_limit_moves mv;
-    if (ctlbench_run(&sc, 3, out, NULL, rows, cap, &r->a3c, err, err_len) != 0)
+    if (ctlbench_run(&sc, 3, out, log_path(lp, sizeof lp, out, name, "alg3", logs), rows, cap, &r->a3c, err,
+                     err_len) != 0)
         return -1;
     r->commission_result = leveler_settings_current()->commission_result; /* the firmware after the run */
     r->commission_s = leveler_settings_current()->commission_ms / 1000.0;
-    if (ctlbench_limit(&sc, out, NULL, rows, cap, &r->limc, &mv, err, err_len) != 0)
+    if (ctlbench_limit(&sc, out, log_path(lp, sizeof lp, out, name, "limit", logs), rows, cap, &r->limc, &mv, err,
+                       err_len) != 0)
         return -1;
     r->worst_c = 0.0;
     for (size_t k = 0; k < 2 && k < r->a3c.step_count; k++) {
@@ -85,25 +97,27 @@ static int run_commissioned(const char *out, rig_result *r, runlog_row *rows, si
 }
 
 /* One rig: written, loaded by the config loader, run with algorithm 3 and its limit, then commissioned. */
-static int run_rig(const char *out, const char *configs, rig_result *r, runlog_row *rows, size_t cap, char *err,
-                   size_t err_len)
+static int run_rig(const char *out, const char *configs, bool logs, rig_result *r, runlog_row *rows, size_t cap,
+                   char *err, size_t err_len)
 {
     if (ctlbench_family_write(&r->rig, out, configs, err, err_len) != 0)
         return -1;
     ctlbench_scenario sc;
-    char name[CTLBENCH_NAME_MAX];
+    char name[CTLBENCH_NAME_MAX], lp[1024];
     snprintf(name, sizeof name, "%.*s", (int)(strlen(r->rig.file) - 4), r->rig.file);
     ctlbench_thesis_rest(&sc, name, r->rig.file, NOISE_COUNTS, 104u, REST_S);
     ctlbench_limit_moves mv;
-    if (ctlbench_run(&sc, 3, out, NULL, rows, cap, &r->a3, err, err_len) != 0 ||
-        ctlbench_limit(&sc, out, NULL, rows, cap, &r->lim, &mv, err, err_len) != 0)
+    if (ctlbench_run(&sc, 3, out, log_path(lp, sizeof lp, out, name, "alg3", logs), rows, cap, &r->a3, err,
+                     err_len) != 0 ||
+        ctlbench_limit(&sc, out, log_path(lp, sizeof lp, out, name, "limit", logs), rows, cap, &r->lim, &mv, err,
+                       err_len) != 0)
         return -1;
     r->worst = 0.0;
     for (size_t k = 0; k < 2 && k < r->a3.step_count; k++) {
         r->ratio[k] = ratio(&r->a3.step[k], &r->lim.step[k]);
         r->worst = r->ratio[k] > r->worst ? r->ratio[k] : r->worst;
     }
-    return run_commissioned(out, r, rows, cap, err, err_len);
+    return run_commissioned(out, logs, r, rows, cap, err, err_len);
 }
 
 static void print_rig(const rig_result *r)
@@ -190,19 +204,21 @@ static int write_json(const char *out, const rig_result *r, size_t n, size_t wor
     return 0;
 }
 
-enum { OPT_OUT = 0x100, OPT_CONFIGS, OPT_RIGS, OPT_SEED };
+enum { OPT_OUT = 0x100, OPT_CONFIGS, OPT_RIGS, OPT_SEED, OPT_LOGS };
 
 static const cli_option family_options[] = {
     {"out", OPT_OUT, "DIR", "the rigs' INI files and family.json (default build/ctlfamily)", 0},
     {"configs", OPT_CONFIGS, "DIR", "the thesis configs (default <source>/host_sim/configs)", 0},
     {"rigs", OPT_RIGS, "N", "rigs in the family, 1..64 (default 24)", 0},
     {"seed", OPT_SEED, "S", "the family's seed (default 19)", 0},
+    {"logs", OPT_LOGS, NULL, "also write each run's log (docs/log-format.md) as DIR/<rig>[-commissioned]-{alg3,limit}.csv",
+     0},
     {NULL, 0, NULL, NULL, 0},
 };
 
 static const cli_spec family_cli = {
     .prog = "leveler-ctlbench-family",
-    .usage = "[--out DIR] [--configs DIR] [--rigs N] [--seed S]",
+    .usage = "[--out DIR] [--configs DIR] [--rigs N] [--seed S] [--logs]",
     .about = "Algorithm 3 (defaults, learning on) over rigs made by perturbing the thesis rig: switchings at\n"
              "rest with 4 counts of noise, return against each rig's limit, overshoot; the worst rig named.",
     .opts = family_options,
@@ -211,6 +227,7 @@ static const cli_spec family_cli = {
 typedef struct {
     const char *out, *configs;
     int rigs, seed;
+    bool logs;
 } family_args;
 
 static int family_option(void *user, int key, const char *v)
@@ -221,6 +238,7 @@ static int family_option(void *user, int key, const char *v)
     case OPT_CONFIGS: a->configs = v; break;
     case OPT_RIGS: return cli_int(&family_cli, "rigs", v, 1, MAX_RIGS, &a->rigs);
     case OPT_SEED: return cli_int(&family_cli, "seed", v, 0, 1000000, &a->seed);
+    case OPT_LOGS: a->logs = true; break;
     }
     return 0;
 }
@@ -310,7 +328,7 @@ int main(int argc, char **argv)
     for (int i = 0; rows && i < a.rigs; i++) {
         ctlbench_family_draw((uint32_t)a.seed, (unsigned)i, &r[i].rig);
         fprintf(stderr, "leveler-ctlbench-family: [%d/%d] %s\n", i + 1, a.rigs, r[i].rig.file);
-        if (run_rig(a.out, a.configs, &r[i], rows, cap, err, sizeof err) != 0) {
+        if (run_rig(a.out, a.configs, a.logs, &r[i], rows, cap, err, sizeof err) != 0) {
             fprintf(stderr, "leveler-ctlbench-family: %s: %s\n", r[i].rig.file, err);
             free(rows);
             return CLI_EXIT_FAILED;

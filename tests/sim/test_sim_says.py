@@ -140,3 +140,28 @@ def test_diagnosis_refuses_another_configs_logs(tmp_path):
     assert p.returncode == 2, p.stdout + p.stderr
     assert "logged config 'thesis-1000lb' is not --config's 'thesis-900lb'" in p.stderr, p.stderr
     assert not os.path.exists(tmp_path / "out")
+
+
+def test_family_logs_are_the_runs_it_scores(tmp_path):
+    """leveler-ctlbench-family --logs writes each run's log without changing a figure
+    (family.json is the same as without --logs), and the limit's log is the limit the
+    issue defines: every fill path opened at the instant the load is added."""
+    fam = os.path.join(os.path.dirname(SIM), "leveler-ctlbench-family")
+    out = {}
+    for name, extra in (("plain", []), ("logged", ["--logs"])):
+        d = tmp_path / name
+        p = subprocess.run([fam, "--out", str(d), "--rigs", "1", *extra], capture_output=True, text=True,
+                           timeout=300)
+        assert p.returncode == 0, p.stderr
+        out[name] = json.loads((d / "family.json").read_text())
+    assert out["plain"] == out["logged"]
+    logged = tmp_path / "logged"
+    assert not list((tmp_path / "plain").glob("*.csv"))
+    for who in ("rig-01-alg3", "rig-01-limit", "rig-01-commissioned-alg3", "rig-01-commissioned-limit"):
+        assert (logged / f"{who}.csv").stat().st_size > 0, who
+    lim = runlog.read(logged / "rig-01-limit.csv")
+    added = np.flatnonzero(np.diff(lim.load_n) > 0)[0] + 1      # the first row under the heavier load
+    for valve in ("compressor", "spring_valve", "acc_valve"):
+        assert lim.column(valve)[added] == 1, (valve, lim.t_s[added])
+    a3 = runlog.read(logged / "rig-01-alg3.csv")
+    np.testing.assert_array_equal(a3.load_n, lim.load_n)         # one scenario, two controllers
