@@ -77,14 +77,12 @@ def _fit_pairs(ask, basis, plan, screen):
                  for n in plan]
 
 
-def pair_step(ask, basis, gate=0.0):
-    """Pairs on top of the leader: a screening fit of each to rank the second
-    effect, full joint fits of the best to judge (pairs.py). Returns
-    (pair entries ranked by evidence, the kept one or None, the ranked second or None)."""
-    ranking = basis.ranking
+def _pair_round(ask, basis, ranking):
+    """Pairs on top of ranking[0]: a screening fit of each, then full joint fits of
+    the best (pairs.plan). Returns ({name: entry}, [the fully fitted entries])."""
     screen = pairs.screen_plan(ranking, basis.fits)
     if not screen:
-        return [], None, None
+        return {}, []
     ask.progress(f"      pairs on top of {ranking[0]['effect']}: screening {len(screen)}")
     res, screened = _fit_pairs(ask, basis, screen, True)
     full = pairs.plan(ranking, screened, res)
@@ -92,11 +90,33 @@ def pair_step(ask, basis, gate=0.0):
     if full:
         ask.progress(f"      fitting {len(full)} of them jointly in full")
         entries.update({e["effect"]: e for e in _fit_pairs(ask, basis, full, False)[1]})
+    return entries, [entries[n] for n in full]
+
+
+def pair_step(ask, basis, gate=0.0, noise=0.0):
+    """Pairs on top of the leader: a screening fit of each to rank the second
+    effect, full joint fits of the best to judge (pairs.py). When the best of them
+    still leaves the held-out runs well above the logs' noise (pairs.LEFT_NOISE
+    noise gaps), the leader may be a stand-in for two others: pairs on top of its
+    best partner follow, judged with the first (pairs.second_round). Returns
+    (pair entries ranked by evidence, the kept one or None, the ranked second or None)."""
+    ranking = basis.ranking
+    entries, full = _pair_round(ask, basis, ranking)
+    if not entries:
+        return [], None, None
     by = {r["effect"]: r for r in ranking}
-    kept = pairs.judge([entries[n] for n in full], by, basis.threshold, basis.gaps[1] - gate)
+    kept = pairs.judge(full, by, basis.threshold, basis.gaps[1] - gate)
+    again = pairs.second_round(ranking, list(entries.values()), kept, noise)
+    if again:
+        ask.progress(f"      the pairs on top of {ranking[0]['effect']} leave the held-out runs over "
+                     f"{pairs.LEFT_NOISE:g} noise gaps: pairs on top of {again[0]['effect']}, without "
+                     f"{ranking[0]['effect']}")
+        more, full2 = _pair_round(ask, basis, again)
+        entries.update(more)
+        kept = pairs.judge(full + full2, by, basis.threshold, basis.gaps[1] - gate, ranking[0]["effect"])
     out = sorted(entries.values(), key=lambda e: e["evidence"])
     for e in out:
-        ask.progress(f"      {e['effect']:<31} {e['shrink_pct']:+.1f}% ({e['gain_pts']:+.1f} points over the "
-                     f"leader, evidence {e['evidence']:+.1f}, information criterion {e['delta_bic']:+.1f}): "
-                     + ("kept" if e["kept"] else "not kept: " + "; ".join(e["why_not"])))
+        ask.progress(f"      {e['effect']:<31} {e['shrink_pct']:+.1f}% ({e['gain_pts']:+.1f} points over "
+                     f"{e['effects'][0]}, evidence {e['evidence']:+.1f}, information criterion "
+                     f"{e['delta_bic']:+.1f}): " + ("kept" if e["kept"] else "not kept: " + "; ".join(e["why_not"])))
     return out, kept, pairs.ranked_second(out, kept)

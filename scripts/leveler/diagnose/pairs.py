@@ -33,6 +33,13 @@ only when it buys more than its extra parameters:
   3. neither effect alone makes the held-out gap worse than nominal (no
      candidate that does is ever named).
 Of the fully fitted pairs that pass, the one with the largest held-out shrink is kept.
+
+A second round: when the pairs on top of the leader still leave the held-out runs
+over LEFT_NOISE noise gaps, the leader may be standing in for two other effects
+(a pipe delay beside a sensor lag named a thermal effect: thermal + sensor_lag left
+0.810, the true pair 0.447, never fitted). The leader's best partner then leads a
+round of its own, without the leader; its pairs are judged with the first round's,
+and must also do what rule 1 asks of a pair on top of the leader.
 """
 import math
 
@@ -42,6 +49,7 @@ from . import fit
 MAX_PAIRS = 2      # full joint fits on top of the leader (time: about a single fit each)
 REL_GAIN = 0.3     # share of the leader's held-out gap a second effect must close
 MIN_GAIN_PTS = 5.0  # and at least this many points of the nominal gap
+LEFT_NOISE = 3.0    # pairs leaving the held-out runs over this many noise gaps: a second round (second_round)
 
 
 def screen_plan(ranking, fits):
@@ -108,12 +116,47 @@ def ranked_second(entries, kept):
             "closes_pct_of_leader_gap": best["closes_pct_of_leader_gap"]}
 
 
-def judge(entries, by_effect, threshold, max_gap=float("inf")):
+def second_round(ranking, entries, kept, noise):
+    """The ranking a second round of pairs is fitted on (its leader first), or None.
+    The round runs when the pairs on top of the leader leave the held-out runs over
+    LEFT_NOISE noise gaps (the kept one, else the best of them): the leader may then
+    stand in for two other effects (a pipe delay beside a sensor lag named a thermal
+    effect with the sensor lag, its pair a third worse than the two true effects'),
+    and the leader's best partner (the most evidence over the leader) leads the
+    round, with every candidate but the leader."""
+    if noise <= 0 or not entries:
+        return None
+    best = kept or min(entries, key=lambda e: e["holdout_gap"])
+    if best["holdout_gap"] <= LEFT_NOISE * noise:
+        return None
+    partner = min(entries, key=lambda e: e["evidence"])["effects"][1]
+    lead = ranking[0]["effect"]
+    again = [r for r in ranking if r["effect"] == partner] + \
+        [r for r in ranking if r["effect"] not in (lead, partner)]
+    return again if len(again) > 1 else None
+
+
+def _beats_leader(e, lead):
+    """Why a pair of a second round (its first not the leader) does not do for the
+    leader alone what rule 1 asks of a second effect: [] when it does."""
+    if e["effects"][0] == lead["effect"]:
+        return []
+    closes = 100.0 * (1.0 - e["holdout_gap"] / lead["holdout_gap"]) if lead["holdout_gap"] > 0 else 0.0
+    gain = e["shrink_pct"] - lead["shrink_pct"]
+    if closes >= 100.0 * REL_GAIN and gain >= MIN_GAIN_PTS:
+        return []
+    return [f"closes {closes:.0f}% of the held-out gap {lead['effect']} alone leaves ({gain:+.1f} points): "
+            f"less than a second effect must on top of it"]
+
+
+def judge(entries, by_effect, threshold, max_gap=float("inf"), leader=None):
     """Marks each pair kept or not (with the reasons it fails); returns the kept one or None.
-    max_gap: the held-out gap a kept pair must get below (the noise gate, pipeline.py)."""
+    max_gap: the held-out gap a kept pair must get below (the noise gate, pipeline.py);
+    leader: the best single effect, which a pair of a second round must beat as a pair
+    on top of it would (second_round)."""
     for e in entries:
         first, second = e["effects"]
-        why = []
+        why = _beats_leader(e, by_effect[leader]) if leader else []
         if not e["closes_pct_of_leader_gap"] >= 100.0 * REL_GAIN:
             why.append(f"closes {e['closes_pct_of_leader_gap']:.0f}% of the leader's held-out gap "
                        f"< {100.0 * REL_GAIN:.0f}%")
@@ -135,4 +178,7 @@ def judge(entries, by_effect, threshold, max_gap=float("inf")):
         return None
     best = max(ok, key=lambda e: e["shrink_pct"])
     best["kept"] = True
+    for e in ok:
+        if e is not best:
+            e["why_not"] = [f"{best['effect']} shrinks the held-out gap more"]
     return best

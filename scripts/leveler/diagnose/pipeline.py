@@ -115,12 +115,13 @@ def _verdict(ask, evidence, basis, noise, gate):
     if best["shrink_pct"] >= basis.threshold and not named_single:
         ask.progress(f"      {best['effect']} lowers the held-out gap by {basis.gaps[1] - best['holdout_gap']:.3f}, "
                      f"less than half the gap of the logs' own noise ({gate:.3f}): no evidence of an effect")
-    pair_list, kept, second = (cand.pair_step(ask, basis, gate) if evidence.fits_pairs and not basis.calibrated
+    pair_list, kept, second = (cand.pair_step(ask, basis, gate, noise) if evidence.fits_pairs and not basis.calibrated
                                else ([], None, None))
     finding = evidence.unexplained(basis.hold_problem, basis.holdout, basis.ranking, kept, basis.gaps[1], noise,
                                    basis.threshold, ask.progress)
     named = (named_single or kept is not None) and finding is None
-    winner = best["effect"] if named else ("not explained" if finding else "none")
+    lead = kept["effects"][0] if kept else best["effect"]     # a kept pair's first: its round's leader
+    winner = lead if named else ("not explained" if finding else "none")
     effects = kept["effects"] if kept and named else ([winner] if named else [])
     return Verdict(named, named_single, pair_list, kept, second, finding, winner, effects)
 

@@ -12,6 +12,7 @@ import jinja2  # noqa: E402
 
 from leveler import __version__  # noqa: E402
 from leveler.thesis import M_PER_IN, PA_PER_PSI  # noqa: E402
+from leveler.diagnose import effects as fx  # noqa: E402
 
 _TEMPLATES = jinja2.Environment(loader=jinja2.PackageLoader("leveler.diagnose", "templates"),
                                 autoescape=True, undefined=jinja2.StrictUndefined,
@@ -121,7 +122,7 @@ def _second(result):
     sec = result.get("second")
     if not sec or not sec.get("pair"):
         return None
-    return {"effect": sec["effect"], "lead": result["ranking"][0]["effect"], "evidence": sec["evidence"],
+    return {"effect": sec["effect"], "lead": fx.parts(sec["pair"])[0], "evidence": sec["evidence"],
             "gain_pts": sec["gain_pts"], "kept": sec["kept"]}
 
 
@@ -132,7 +133,7 @@ def _pairs(result):
     return {"kept": len(result.get("effects") or []) > 1, "effects": result.get("effects") or [],
             "second": _second(result), "table": _table(result["pairs"], [
                 ("pair", lambda r: " + ".join(r["effects"])), ("held-out shrink %", lambda r: r["shrink_pct"]),
-                ("gain over the leader, points", lambda r: r["gain_pts"]),
+                ("gain over its first, points", lambda r: r["gain_pts"]),
                 ("share of the leader's gap closed %", lambda r: r["closes_pct_of_leader_gap"]),
                 ("calibration shrink %", lambda r: r["calibration_shrink_pct"]),
                 ("information criterion change", lambda r: r["delta_bic"]),
