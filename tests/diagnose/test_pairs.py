@@ -76,3 +76,13 @@ def test_the_pair_a_leader_stood_in_for_is_named(tmp_path):
     assert case == "line_delay+sensor_lag"
     r = blindtest.run_case(sim, str(tmp_path), 3, case, 0, [], slot=len(blindtest.CASES) + 1)
     assert set(r["effects"]) == {"line_delay", "sensor_lag"}, r["pairs"]
+
+
+def test_without_a_kept_pair_the_ranked_second_is_the_leaders():
+    # a second round's pair has more evidence over its own first than any pair over the leader:
+    # the ranked combination stays the leader's (blind-test seed 7 named friction, ranked leak + sensor_lag)
+    first = [pair("thermal", "sensor_lag", 0.810, -177.4), pair("thermal", "friction", 1.867, -25.9)]
+    second = [pair("sensor_lag", "line_delay", 0.447, -646.1)]
+    s = pairs.ranked_second(first + second, None, "thermal")
+    assert (s["effect"], s["pair"]) == ("sensor_lag", "thermal+sensor_lag")
+    assert pairs.ranked_second(first + second, second[0], "thermal")["pair"] == "sensor_lag+line_delay"

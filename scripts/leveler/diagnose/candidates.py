@@ -119,4 +119,4 @@ def pair_step(ask, basis, gate=0.0, noise=0.0):
         ask.progress(f"      {e['effect']:<31} {e['shrink_pct']:+.1f}% ({e['gain_pts']:+.1f} points over "
                      f"{e['effects'][0]}, evidence {e['evidence']:+.1f}, information criterion "
                      f"{e['delta_bic']:+.1f}): " + ("kept" if e["kept"] else "not kept: " + "; ".join(e["why_not"])))
-    return out, kept, pairs.ranked_second(out, kept)
+    return out, kept, pairs.ranked_second(out, kept, ranking[0]["effect"])

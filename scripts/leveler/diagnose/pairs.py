@@ -105,10 +105,13 @@ def entry(name, res, by_effect, nruns, shrink, nominal_cal_gap, nominal_hold_gap
     return out
 
 
-def ranked_second(entries, kept):
+def ranked_second(entries, kept, leader=None):
     """The second place of the ranked combination: the kept pair's second, else the
-    partner with the most evidence over the leader alone (None without pairs)."""
-    best = kept or min(entries, key=lambda e: e["evidence"], default=None)
+    partner with the most evidence over the leader alone (None without pairs). A
+    second round's evidence is over its own first, not the leader: without a kept
+    pair only pairs on top of the leader (its name: leader) are ranked."""
+    ranked = [e for e in entries if leader is None or e["effects"][0] == leader]
+    best = kept or min(ranked, key=lambda e: e["evidence"], default=None)
     if best is None:
         return None
     return {"effect": best["effects"][1], "pair": best["effect"], "kept": best["kept"],
