@@ -99,10 +99,15 @@ def entry(name, res, by_effect, nruns, shrink, nominal_cal_gap, nominal_hold_gap
         "simulations": res["simulations"], "seconds": res["seconds"], "kept": False,
         "why_not": ["screening fit only"] if screen else [],
     }
-    out["gain_pts"] = out["shrink_pct"] - lead["shrink_pct"]
-    out["closes_pct_of_leader_gap"] = 100.0 * (1.0 - res["holdout_gap"] / lead["holdout_gap"]) \
-        if lead["holdout_gap"] > 0 else 0.0
+    out["closes_pct_of_leader_gap"], out["gain_pts"] = _over(out, lead)
     return out
+
+
+def _over(e, single):
+    """What a pair (or any held-out entry) does over a single effect's fit: the share
+    of its held-out gap closed, %, and the held-out shrink gained, points."""
+    closes = 100.0 * (1.0 - e["holdout_gap"] / single["holdout_gap"]) if single["holdout_gap"] > 0 else 0.0
+    return closes, e["shrink_pct"] - single["shrink_pct"]
 
 
 def ranked_second(entries, kept, leader=None):
@@ -132,8 +137,8 @@ def second_round(ranking, entries, kept, noise):
     best = kept or min(entries, key=lambda e: e["holdout_gap"])
     if best["holdout_gap"] <= LEFT_NOISE * noise:
         return None
-    partner = min(entries, key=lambda e: e["evidence"])["effects"][1]
     lead = ranking[0]["effect"]
+    partner = ranked_second(entries, None, lead)["effect"]
     again = [r for r in ranking if r["effect"] == partner] + \
         [r for r in ranking if r["effect"] not in (lead, partner)]
     return again if len(again) > 1 else None
@@ -144,8 +149,7 @@ def _beats_leader(e, lead):
     leader alone what rule 1 asks of a second effect: [] when it does."""
     if e["effects"][0] == lead["effect"]:
         return []
-    closes = 100.0 * (1.0 - e["holdout_gap"] / lead["holdout_gap"]) if lead["holdout_gap"] > 0 else 0.0
-    gain = e["shrink_pct"] - lead["shrink_pct"]
+    closes, gain = _over(e, lead)
     if closes >= 100.0 * REL_GAIN and gain >= MIN_GAIN_PTS:
         return []
     return [f"closes {closes:.0f}% of the held-out gap {lead['effect']} alone leaves ({gain:+.1f} points): "
@@ -161,7 +165,7 @@ def judge(entries, by_effect, threshold, max_gap=float("inf"), leader=None):
         first, second = e["effects"]
         why = _beats_leader(e, by_effect[leader]) if leader else []
         if not e["closes_pct_of_leader_gap"] >= 100.0 * REL_GAIN:
-            why.append(f"closes {e['closes_pct_of_leader_gap']:.0f}% of the leader's held-out gap "
+            why.append(f"closes {e['closes_pct_of_leader_gap']:.0f}% of {first}'s held-out gap "
                        f"< {100.0 * REL_GAIN:.0f}%")
         if not e["gain_pts"] >= MIN_GAIN_PTS:
             why.append(f"held-out gain {e['gain_pts']:+.1f} points < {MIN_GAIN_PTS:g}")
