@@ -2,7 +2,7 @@
 line_delay + sensor_lag (seed 3, 900 lb, 100 Hz), where thermal led the single
 effects and the true pair was never fitted on top of it. The second round
 (pairs.second_round) runs when the leader's pairs leave the held-out runs over
-LEFT_NOISE noise gaps, on top of the leader's best partner; a pair of it is kept
+confidence.UNEXPLAINED_NOISE noise gaps, on top of the leader's best partner; a pair of it is kept
 only when it also does on the leader alone what a second effect must."""
 from leveler.diagnose import blindtest, pairs
 

@@ -96,7 +96,7 @@ def _pair_round(ask, basis, ranking):
 def pair_step(ask, basis, gate=0.0, noise=0.0):
     """Pairs on top of the leader: a screening fit of each to rank the second
     effect, full joint fits of the best to judge (pairs.py). When the best of them
-    still leaves the held-out runs well above the logs' noise (pairs.LEFT_NOISE
+    still leaves the held-out runs well above the logs' noise (pairs.UNEXPLAINED_NOISE
     noise gaps), the leader may be a stand-in for two others: pairs on top of its
     best partner follow, judged with the first (pairs.second_round). Returns
     (pair entries ranked by evidence, the kept one or None, the ranked second or None)."""
@@ -109,7 +109,7 @@ def pair_step(ask, basis, gate=0.0, noise=0.0):
     again = pairs.second_round(ranking, list(entries.values()), kept, noise)
     if again:
         ask.progress(f"      the pairs on top of {ranking[0]['effect']} leave the held-out runs over "
-                     f"{pairs.LEFT_NOISE:g} noise gaps: pairs on top of {again[0]['effect']}, without "
+                     f"{pairs.UNEXPLAINED_NOISE:g} noise gaps: pairs on top of {again[0]['effect']}, without "
                      f"{ranking[0]['effect']}")
         more, full2 = _pair_round(ask, basis, again)
         entries.update(more)

@@ -134,3 +134,9 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
                f"{'' if best['shrink_pct'] >= SURE_EFFECT_SHRINK else ' and closes ' + format(best['shrink_pct'], '.0f') + '% of the gap'}")
     return {"level": level, "probability": _probability(level), "set": cset, "why": why,
             "experiment": exp if level != "sure" else None}
+
+
+def leaves_much(entry, noise):
+    """An entry (a single effect's fit or a pair) leaves a held-out gap well above the
+    logs' noise (UNEXPLAINED_NOISE noise gaps): part of the gap is not its."""
+    return noise > 0 and entry["holdout_gap"] > UNEXPLAINED_NOISE * noise

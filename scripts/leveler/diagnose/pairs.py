@@ -35,7 +35,7 @@ only when it buys more than its extra parameters:
 Of the fully fitted pairs that pass, the one with the largest held-out shrink is kept.
 
 A second round: when the pairs on top of the leader still leave the held-out runs
-over LEFT_NOISE noise gaps, the leader may be standing in for two other effects
+over UNEXPLAINED_NOISE noise gaps, the leader may be standing in for two other effects
 (a pipe delay beside a sensor lag named a thermal effect: thermal + sensor_lag left
 0.810, the true pair 0.447, never fitted). The leader's best partner then leads a
 round of its own, without the leader; its pairs are judged with the first round's,
@@ -45,11 +45,11 @@ import math
 
 from . import effects as fx
 from . import fit
+from .confidence import UNEXPLAINED_NOISE, leaves_much
 
 MAX_PAIRS = 2      # full joint fits on top of the leader (time: about a single fit each)
 REL_GAIN = 0.3     # share of the leader's held-out gap a second effect must close
 MIN_GAIN_PTS = 5.0  # and at least this many points of the nominal gap
-LEFT_NOISE = 3.0    # pairs leaving the held-out runs over this many noise gaps: a second round (second_round)
 
 
 def screen_plan(ranking, fits):
@@ -127,15 +127,12 @@ def ranked_second(entries, kept, leader=None):
 def second_round(ranking, entries, kept, noise):
     """The ranking a second round of pairs is fitted on (its leader first), or None.
     The round runs when the pairs on top of the leader leave the held-out runs over
-    LEFT_NOISE noise gaps (the kept one, else the best of them): the leader may then
+    UNEXPLAINED_NOISE noise gaps (the kept one, else the best of them): the leader may then
     stand in for two other effects (a pipe delay beside a sensor lag named a thermal
     effect with the sensor lag, its pair a third worse than the two true effects'),
     and the leader's best partner (the most evidence over the leader) leads the
     round, with every candidate but the leader."""
-    if noise <= 0 or not entries:
-        return None
-    best = kept or min(entries, key=lambda e: e["holdout_gap"])
-    if best["holdout_gap"] <= LEFT_NOISE * noise:
+    if not entries or not leaves_much(kept or min(entries, key=lambda e: e["holdout_gap"]), noise):
         return None
     lead = ranking[0]["effect"]
     partner = ranked_second(entries, None, lead)["effect"]

@@ -15,7 +15,7 @@ from . import certainty
 from . import effects as fx
 from . import fit
 from . import result as result_mod
-from .confidence import UNEXPLAINED_NOISE
+from .confidence import leaves_much
 from .context import Ask, Basis, Verdict
 from .evidence_figures import PublishedFigures
 from .evidence_runs import RunLogs
@@ -53,7 +53,7 @@ def _diagnose(ask, evidence, calib, holdout, folder):
         # the calibration stands: an effect must explain what it leaves, fitted with it
         basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
     elif calibration and calibration.get("superseded_by") and evidence.fits_pairs and \
-            as_given[0]["shrink_pct"] >= basis.threshold and _leaves_much(as_given[0], noise):
+            as_given[0]["shrink_pct"] >= basis.threshold and leaves_much(as_given[0], noise):
         # the calibration was kept, then set aside for the effect (effect_first)
         again = calibration_path.under_effect(ask, as_given[0], calibration, calib, holdout, folder, threshold)
         if again:
@@ -62,7 +62,7 @@ def _diagnose(ask, evidence, calib, holdout, folder):
             handles = calibration_path.beside_effects(calibration, as_given)
             basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
     verdict = _verdict(ask, evidence, basis, noise, gate)
-    if basis.calibrated and (verdict.finding or verdict.named and _leaves_much(verdict.top(basis.ranking), noise)):
+    if basis.calibrated and (verdict.finding or verdict.named and leaves_much(verdict.top(basis.ranking), noise)):
         basis, verdict = _effects_after_all(ask, evidence, calibration, basis, verdict, given, noise, gate)
     final_v = None      # the calibrated vector the final figures run on; None off the calibration path
     if basis.calibrated and verdict.named:
@@ -79,12 +79,6 @@ def _diagnose(ask, evidence, calib, holdout, folder):
     model = result_mod.model_of(ask.config, calibration, handles, final_v, verdict.top(basis.ranking))
     result = result_mod.build(ask, basis, verdict, where, calibration, sure, look, noise, ba, model, t0)
     return result.as_dict(), {"holdout": basis.holdout, "nominal": user_nominal_hold, "augmented": aug_hold}
-
-
-def _leaves_much(entry, noise):
-    """A candidate (ranking entry) leaves a held-out gap well above the logs' noise
-    (confidence.UNEXPLAINED_NOISE noise gaps): part of the gap is not its."""
-    return noise > 0 and entry["holdout_gap"] > UNEXPLAINED_NOISE * noise
 
 
 def _where_step(ask, evidence, calib, holdout):
