@@ -291,12 +291,14 @@ def logged_seconds(folder, names=("cal1", "cal2", "hold")):
     return float(sum(np.ptp(runs.load_run(os.path.join(folder, f"{n}.csv")).t_s) for n in names))
 
 
-def diagnose_blind(folder, out, config, extra, runs_=("cal1", "cal2"), holdout="hold"):
+def diagnose_blind(folder, out, config, extra, runs_=("cal1", "cal2"), holdout=("hold",)):
     """The diagnosis as its own process, on the logs only."""
     cmd = [sys.executable, "-m", "leveler.diagnose", "--config", config]
     for r in runs_:
         cmd += ["--run", os.path.join(folder, f"{r}.csv")]
-    cmd += ["--holdout", os.path.join(folder, f"{holdout}.csv"), "--out", out, "--quiet"] + list(extra)
+    for r in holdout:
+        cmd += ["--holdout", os.path.join(folder, f"{r}.csv")]
+    cmd += ["--out", out, "--quiet"] + list(extra)
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         raise RuntimeError(f"diagnosis failed ({p.returncode}): {p.stderr.strip()}")
@@ -315,7 +317,10 @@ def run_experiment(sim, folder, d, case, params, system, kind, seed, extra, spec
     """Look-alikes: run the proposed experiment on the same truth and score the
     look-alikes, fitted on the calibration runs as before, on it: the experiment
     was designed from their predictions, so it is the held-out run that decides.
-    Returns the new verdict. spec: a case of another family (family_specs)."""
+    It joins the first held-out run, not replaces it: an experiment that does not
+    exercise what the calibration found (a pulse train of the spring valve against
+    a vent's Cd) would have the calibration dropped, and the effects judged on the
+    config as given. Returns the new verdict. spec: a case of another family."""
     logs = os.path.join(folder, "logs")
     steps, end = read_schedule(os.path.join(folder, "diagnosis", "experiment.csv"))
     slot = CASES.index(case) if spec is None else spec["slot"]
@@ -325,7 +330,7 @@ def run_experiment(sim, folder, d, case, params, system, kind, seed, extra, spec
                     design.schedule_writes(steps), form_id=None if spec is None else spec["form_id"])
     group = ",".join(d["cannot_tell_apart"] or [x for x in lookalike_set(d) if x in fx.NAMES])
     d2 = diagnose_blind(logs, os.path.join(folder, "diagnosis-experiment"), SYSTEMS[system][0],
-                        list(extra) + ["--effects", group], holdout="experiment")
+                        list(extra) + ["--effects", group], holdout=("hold", "experiment"))
     return d2["effect"]
 
 
