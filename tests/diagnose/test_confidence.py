@@ -95,3 +95,23 @@ def test_a_rival_still_alike_to_the_model_that_stands_stays():
     cal = {"rival": {"effect": "leak", "moved": ["pipe_volume"], "effect_gap": 0.30, "calibration_gap": 0.29}}
     calibration_path.rival_outdone(cal, {"effect": "area", "holdout_gap": 0.25}, 0.116, lambda m: None)
     assert "rival" in cal
+
+
+# offform valve_lag seed 1 (accumulator, rig-rate logs): no effect named, valve_dynamics
+# closing 20.9 % of the held-out gap (the threshold 15 %) by 0.192 against a noise gate of 0.201
+HINTED = [{"effect": "valve_dynamics", "shrink_pct": 20.9}, {"effect": "sensor_lag", "shrink_pct": 3.3}]
+
+
+def test_a_candidate_over_the_threshold_but_not_named_is_a_set_with_none():
+    a = confidence.assess([], HINTED, 0.916 / 0.402, 1.0, None, None, None, threshold=15.0)
+    assert a["level"] == "unsure" and a["set"] == ["valve_dynamics", "none"]
+    assert "closes 21% of the held-out gap" in a["why"] and "must close 15%" in a["why"]
+
+
+def test_no_hint_under_the_threshold_or_with_an_effect_named():
+    # the present family's effect-free cases: the best candidate closes at most 7.1 %
+    assert confidence.hinted([], [{"effect": "valve_dynamics", "shrink_pct": 7.1}], 15.0) is None
+    assert confidence.hinted(["valve_dynamics"], HINTED, 15.0) is None
+    assert confidence.hinted([], HINTED, 15.0, {"why": "not explained"}) is None
+    # without a threshold (the callers before it) the levels are as they were
+    assert confidence.assess([], HINTED, 2.28, 1.0, None, None, None)["level"] == "likely"

@@ -307,10 +307,14 @@ def diagnose_blind(folder, out, config, extra, runs_=("cal1", "cal2"), holdout=(
 
 
 def lookalike_set(d):
-    """What a diagnosis says it cannot tell apart: its look-alike effects, or an effect
-    and the calibration that explain the held-out runs alike (its `rival`)."""
+    """What a diagnosis says it cannot tell apart: its look-alike effects, an effect
+    and the calibration that explain the held-out runs alike (its `rival`), or no
+    effect and the one the logs hint at (confidence.hinted: the set [effect, "none"]
+    with an experiment)."""
     rival = (d.get("calibration") or {}).get("rival")
-    return d.get("cannot_tell_apart") or ([rival["effect"], "calibration"] if rival else [])
+    conf = d.get("confidence") or {}
+    hint = conf.get("set", []) if "none" in conf.get("set", []) and d.get("experiment") else []
+    return d.get("cannot_tell_apart") or ([rival["effect"], "calibration"] if rival else hint)
 
 
 def run_experiment(sim, folder, d, case, params, system, kind, seed, extra, spec=None):
@@ -441,11 +445,12 @@ def run_form_case(sim, top, seed, spec, index, extra, force=(None, None, "step",
     if spec["family"] in ("misset", "combo"):
         r["param"] = spec["param"]
         r["param_named"] = param_named(cal, spec["param"])
-    # a mis-set rig's truth among the look-alikes is the calibration
-    truth_in = spec["truth"] if spec["truth"] in fx.NAMES else ("calibration" if spec["family"] == "misset" else None)
+    # a mis-set rig's truth among the look-alikes is the calibration, or no effect
+    truth_in = [spec["truth"]] if spec["truth"] in fx.NAMES else (["calibration", "none"] if spec["family"] ==
+                                                                   "misset" else [])
     if r["lookalikes"] and truth_in:
         r["after_experiment"] = (run_experiment(sim, folder, d, effect, params, system, kind, seed, extra, spec)
-                                 if truth_in in r["lookalikes"] else "truth not among them")
+                                 if set(truth_in) & set(r["lookalikes"]) else "truth not among them")
         r["verdict"] = r["after_experiment"]
     r["right"] = case_right(r)
     return r

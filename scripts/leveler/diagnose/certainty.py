@@ -39,6 +39,14 @@ def _experiment(problem, ranking, pair, progress):
     return exp
 
 
+def _none_experiment(problem, hint, progress):
+    """The experiment that best tells the model as it stands (the calibrated one when
+    kept) from it with the hinted effect (confidence.hinted)."""
+    exp = design.propose(problem, (hint["effect"], values_of(hint)), (None, {}, problem.config, "none"))
+    progress(f"      proposed experiment to tell {hint['effect']} from none: {exp['ranked'][0]['schedule']}")
+    return exp
+
+
 def _rival_experiment(sim, config, calib, cal_config, as_given, rival, progress):
     """The experiment that best tells the calibrated config from the rival effect on
     the config as given (design.py, each model with its own config)."""
@@ -77,8 +85,13 @@ def confidence_step(ask, evidence, basis, verdict, look, calibration, cal_config
     effects = verdict.effects
     sure = confidence.assess(effects, basis.ranking, basis.gaps[1], noise,
                              look["lookalikes"] and look["lookalikes"]["group"], look["experiment"],
-                             verdict.finding, rival, alike_names(calibration), moved_parts(calibration))
+                             verdict.finding, rival, alike_names(calibration), moved_parts(calibration),
+                             basis.threshold)
     designs = evidence.designs_experiments
+    hint = confidence.hinted(effects, basis.ranking, basis.threshold, verdict.finding)
+    if designs and hint and sure["set"][:1] == [hint["effect"]] and not look["experiment"] and not ask.design_pair:
+        look = dict(look, experiment=_none_experiment(basis.cal_problem, hint, ask.progress))
+        sure["experiment"] = look["experiment"]["ranked"][0]["schedule"]
     if designs and rival and not look["experiment"] and not ask.design_pair:
         look = dict(look, experiment=_rival_experiment(ask.sim, ask.config, basis.calib, cal_config, as_given,
                                                        rival, ask.progress))

@@ -82,15 +82,26 @@ def _contenders(ranking, lead_pct, pts):
     return [r["effect"] for r in ranking if r["shrink_pct"] >= lead_pct - pts]
 
 
+def hinted(effects, ranking, threshold, unexplained_finding=None):
+    """With no effect named, the candidate that closes the threshold's share of the
+    held-out gap but was not named (its gain under the noise gate, or another rule):
+    these logs hint at it and cannot confirm it, so `none` and it are a set an
+    experiment can separate. None otherwise."""
+    if effects or unexplained_finding or not ranking or threshold is None:
+        return None
+    return ranking[0] if ranking[0]["shrink_pct"] >= threshold else None
+
+
 def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained_finding, rival=None,
-           alike_values=None, moved=None):
+           alike_values=None, moved=None, threshold=None):
     """{level, probability, set, why, experiment}. effects: the named effect(s)
     ([] for none); ranking: candidates by held-out shrink over the calibrated model;
     rival: an effect that, on the config as given, explains the held-out runs as
     well as the kept calibration (pipeline._effect_first); alike_values: the kept
     calibration's moved values and the others that alone explain the runs as well
     as its first ([name, ...], certainty.alike_names); moved: the kept calibration's
-    moved values by part of the rig ({section: [name, ...]}, certainty.moved_parts)."""
+    moved values by part of the rig ({section: [name, ...]}, certainty.moved_parts);
+    threshold: the share (%) of the held-out gap an effect must close (hinted)."""
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
     margin = best["shrink_pct"] - runner["shrink_pct"] if runner else 100.0
@@ -107,6 +118,11 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
         level, cset = "unsure", ["calibration: " + n for n in alike_values]
         why = (f"no effect; which of {', '.join(alike_values)} is set wrong these logs cannot tell: "
                f"values outside the calibration's explain the held-out runs about as well alone")
+    elif hinted(effects, ranking, threshold):
+        level, cset = "unsure", [best["effect"], "none"]
+        why = (f"no effect named, but {best['effect']} closes {best['shrink_pct']:.0f}% of the held-out gap "
+               f"(an effect must close {threshold:.0f}%) by less than these logs can confirm: an experiment "
+               f"tells it from none")
     elif not effects and noise > 0 and cal_gap <= NONE_QUIET * noise and len(moved or {}) > NONE_SURE_PARTS:
         names = [n for part in moved.values() for n in part]
         level, cset = "likely", ["calibration: " + n for n in names] + [best["effect"]]
