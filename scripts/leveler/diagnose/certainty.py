@@ -88,8 +88,8 @@ def confidence_step(ask, evidence, basis, verdict, look, calibration, cal_config
                              verdict.finding, rival, alike_names(calibration), moved_parts(calibration),
                              basis.threshold)
     designs = evidence.designs_experiments
-    hint = confidence.hinted(effects, basis.ranking, basis.threshold, verdict.finding)
-    if designs and hint and sure["set"][:1] == [hint["effect"]] and not look["experiment"] and not ask.design_pair:
+    if designs and sure["set"][1:] == ["none"] and not look["experiment"] and not ask.design_pair:
+        hint = next(r for r in basis.ranking if r["effect"] == sure["set"][0])     # confidence.hinted
         look = dict(look, experiment=_none_experiment(basis.cal_problem, hint, ask.progress))
         sure["experiment"] = look["experiment"]["ranked"][0]["schedule"]
     if designs and rival and not look["experiment"] and not ask.design_pair:
