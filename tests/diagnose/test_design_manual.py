@@ -36,7 +36,7 @@ def case(cplant, tmp_path_factory):
     logs.mkdir()
     rig = bt.rig_config(str(top), SYSTEM, 1)
     rng = np.random.default_rng(1)
-    for name, steps, end in bt.schedules(rng, SYSTEM)[:2]:
+    for name, steps, end in bt.schedules(rng, SYSTEM):     # cal1, cal2 and the held-out run
         bt.write_truth_log(cplant, str(logs / f"{name}.csv"), rig, SYSTEM, steps, end, "line_delay",
                            truth_params(), "100Hz", rng)
     prob = fit.Problem(cplant, bt.SYSTEMS[SYSTEM][0], [load_run(str(logs / f"{n}.csv")) for n in ("cal1", "cal2")],
@@ -98,7 +98,8 @@ def test_the_blind_test_runs_a_proposed_manual_experiment_on_its_truth(case, cpl
     """blindtest.run_experiment (the path the blind test takes for look-alikes): the
     proposed experiment.csv with register columns is read by the C parser, run on
     the truth through the register map, and the look-alikes refitted by the
-    diagnosis as its own process are scored on it: the truth's kind is named."""
+    diagnosis as its own process are scored on it beside the first held-out run:
+    the truth's kind is named."""
     p = design.propose(case["prob"], ("line_delay", case["a"]), ("sensor_lag", case["b"]))
     os.makedirs(case["top"] / "diagnosis", exist_ok=True)
     design.write_schedule(str(case["top"] / "diagnosis" / "experiment.csv"), p)
