@@ -332,7 +332,7 @@ def run_experiment(sim, folder, d, case, params, system, kind, seed, extra, spec
     rig = os.path.join(folder, "rig.ini")
     write_truth_log(sim, os.path.join(logs, "experiment.csv"), rig, system, steps, end, case, params, kind, rng,
                     design.schedule_writes(steps), form_id=None if spec is None else spec["form_id"])
-    group = ",".join(d["cannot_tell_apart"] or [x for x in lookalike_set(d) if x in fx.NAMES])
+    group = ",".join(x for x in lookalike_set(d) if x in fx.NAMES)     # the set's effects, not none/calibration
     d2 = diagnose_blind(logs, os.path.join(folder, "diagnosis-experiment"), SYSTEMS[system][0],
                         list(extra) + ["--effects", group], holdout=("hold", "experiment"))
     return d2["effect"]
