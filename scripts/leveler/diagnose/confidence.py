@@ -97,7 +97,7 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
     """{level, probability, set, why, experiment}. effects: the named effect(s)
     ([] for none); ranking: candidates by held-out shrink over the calibrated model;
     rival: an effect that, on the config as given, explains the held-out runs as
-    well as the kept calibration (pipeline._effect_first); alike_values: the kept
+    well as the kept calibration (calibration_path.effect_first); alike_values: the kept
     calibration's moved values and the others that alone explain the runs as well
     as its first ([name, ...], certainty.alike_names); moved: the kept calibration's
     moved values by part of the rig ({section: [name, ...]}, certainty.moved_parts);
