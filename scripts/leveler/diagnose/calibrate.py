@@ -237,6 +237,13 @@ class Calibrated:
         self.nsim += p.nsim
         return r
 
+    def data_cost_below(self, u, bound):
+        """The data residual's sum of squares, or None once it reaches bound (fit.Problem.cost_below)."""
+        p = self.problem(u)
+        c = p.cost_below(*(self.effect or (None, {})), bound)
+        self.nsim += p.nsim
+        return c
+
     def residual(self, u):
         return np.concatenate([self.data_residual(u), self.space.prior(u)])
 
@@ -278,8 +285,8 @@ def _grid_best(cal, u, j, xs, best, best_ss, seen):
         seen.append(x)
         v = np.array(u, dtype=float)
         v[j] = x
-        ss = float(np.sum(cal.data_residual(v) ** 2))
-        if ss < best_ss:
+        ss = cal.data_cost_below(v, best_ss)    # None: its first runs already cost more
+        if ss is not None and ss < best_ss:
             best, best_ss = v, ss
     return best, best_ss
 

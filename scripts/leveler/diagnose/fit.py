@@ -78,6 +78,18 @@ class Problem:
     def residual_vector(self, effect, params):
         return np.concatenate([self.best_start(run, effect, params)[1] for run in self.runs])
 
+    def cost_below(self, effect, params, bound):
+        """The residual's sum of squares, as float(np.sum(residual_vector ** 2)), or
+        None as soon as the runs simulated so far reach `bound`: the remaining runs
+        are not simulated (a start or a grid point that cannot be among the best)."""
+        parts, ss = [], 0.0
+        for i, run in enumerate(self.runs):
+            parts.append(self.best_start(run, effect, params)[1])
+            ss += float(np.sum(parts[-1] ** 2))
+            if ss >= bound and i < len(self.runs) - 1:
+                return None
+        return float(np.sum(np.concatenate(parts) ** 2))
+
     def gap(self, effect, params):
         return cost_to_gap(self.residual_vector(effect, params), len(self.runs))
 
@@ -180,11 +192,12 @@ def fit_nested(problem, effect, starts=None, max_nfev=60, seed=0, polish=4):
         u[base] = ub
         return u
 
-    fun = _residual(problem, effect)
-    ub, cost_b = _search(lambda ub: fun(embed(ub)), _starts(effect, base, starts, seed), max_nfev, polish)
+    fun, bounded = _residual(problem, effect), _bounded(problem, effect)
+    ub, cost_b = _search(lambda ub: fun(embed(ub)), _starts(effect, base, starts, seed), max_nfev, polish,
+                         bounded=lambda ub, bound: bounded(embed(ub), bound))
     u0 = embed(ub)
     whole = qmc.Halton(d, scramble=True, seed=seed).random(max(2, starts or start_count(d)))
-    costs = [float(np.sum(fun(u) ** 2)) for u in whole]
+    costs = [_or_inf(bounded(u, cost_b)) for u in whole]    # only those under the base's cost can be used
     first = [u0] + ([whole[int(np.argmin(costs))]] if min(costs) < cost_b else [])
     u, cost = _search(fun, np.asarray(first), max_nfev, len(first), [cost_b] + sorted(costs)[:len(first) - 1])
     return _fit_result(problem, effect, u, cost)
@@ -192,7 +205,7 @@ def fit_nested(problem, effect, starts=None, max_nfev=60, seed=0, polish=4):
 
 def fit_from(problem, effect, cand, max_nfev=60, polish=4):
     """The cost at each start (rows of unit-box points), least_squares from the best `polish`."""
-    u, cost = _search(_residual(problem, effect), cand, max_nfev, polish)
+    u, cost = _search(_residual(problem, effect), cand, max_nfev, polish, bounded=_bounded(problem, effect))
     return _fit_result(problem, effect, u, cost)
 
 
@@ -201,11 +214,37 @@ def _residual(problem, effect):
     return lambda u: problem.residual_vector(effect.name, from_unit(effect, u))
 
 
-def _search(fun, cand, max_nfev, polish, costs=None):
+def _bounded(problem, effect):
+    """The effect's sum of squares at a unit-box point, or None once it reaches a bound (Problem.cost_below)."""
+    return lambda u, bound: problem.cost_below(effect.name, from_unit(effect, u), bound)
+
+
+def _or_inf(cost):
+    return float("inf") if cost is None else cost
+
+
+def start_costs(cand, bounded, keep):
+    """The cost of every start, exact for the `keep` lowest; a start whose first runs
+    already cost more than the keep-th lowest so far is +inf (its last runs are not
+    simulated). The keep lowest, their order and their costs are those of a full count."""
+    costs, lowest = [], []
+    for u in cand:
+        bound = lowest[keep - 1] if len(lowest) >= keep else float("inf")
+        c = _or_inf(bounded(u, bound))
+        costs.append(c)
+        if c < bound:
+            lowest = sorted(lowest + [c])[:keep]
+    return costs
+
+
+def _search(fun, cand, max_nfev, polish, costs=None, bounded=None):
     """least_squares over the unit box from the `polish` lowest of the starts cand
-    (their costs computed here unless given); the best point and its cost."""
+    (their costs computed here unless given: by `bounded`, start_costs, when given); the
+    best point and its cost."""
     d = cand.shape[1]
-    if costs is None:
+    if costs is None and bounded is not None:
+        costs = start_costs(cand, bounded, max(1, polish))
+    elif costs is None:
         costs = [float(np.sum(fun(u) ** 2)) for u in cand]
     order = np.argsort(costs)
     best_u, best_cost = cand[order[0]], costs[order[0]]
