@@ -120,6 +120,7 @@ static void start_move(leveler_alg3 *a, int8_t dir, int64_t off_um, uint32_t now
     a->out_area_um_ms = 0;
     a->fine = fine;
     a->bursting = false;
+    a->recharging = false; /* a recharge starts again only in the band */
     enter(a, dir < 0 ? LEVELER_ALG3_FILLING : LEVELER_ALG3_VENTING, now_ms);
     a->watch.lines.line_fresh = false;
     a->moves = leveler_sat_inc_u16(a->moves);
@@ -291,9 +292,11 @@ static void phase_outputs(leveler_alg3 *a, const leveler_settings *set, int32_t 
                          p_acc_pa < set->acc_charge_max_pa;
         return;
     }
-    if (a->phase == LEVELER_ALG3_IDLE && acc && a->out_dir == 0) {
+    /* a recharge starts in the band; one under way goes on through a departure not yet confirmed
+     * (noise at the band's edge would otherwise cut it every tick it reads outside) */
+    if (a->phase == LEVELER_ALG3_IDLE && acc && (a->out_dir == 0 || a->recharging)) {
         if ((int64_t)p_acc_pa < (int64_t)set->acc_charge_max_pa - LEVELER_ALG3_RECHARGE_HYST_PA) {
-            a->recharging = true;
+            a->recharging = a->recharging || a->out_dir == 0;
         } else if (p_acc_pa >= set->acc_charge_max_pa) {
             a->recharging = false;
         }

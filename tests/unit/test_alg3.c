@@ -318,6 +318,38 @@ static void test_accumulator_duties(void **state)
     assert_false(out.acc_valve);
 }
 
+/* A recharge under way goes on while the platform reads just outside the band
+ * (sensor noise on the band's edge: a departure not yet confirmed), where it
+ * would not start; a move that begins ends it, and idle after the move does not
+ * take it up again until the platform is back in the band. */
+static void test_recharge_through_noise_at_the_edge(void **state)
+{
+    (void)state;
+    set.alg3_accumulator = 1;
+    int32_t low = set.acc_charge_max_pa - 20000;
+    tick3(UPPER_UM + 500, P2_PA, low); /* outside before any recharge: none starts */
+    assert_true(a.out_dir != 0 && !out.compressor);
+    for (unsigned i = 0; i < 300; i++) {
+        tick3(i < 150 ? TARGET_UM : UPPER_UM, P2_PA, low);
+    }
+    assert_true(out.compressor && out.acc_valve);
+    unsigned outside = 0;
+    for (unsigned i = 0; i < 40; i++) { /* noise of +-0.1 mm on the edge, far from a confirmed departure */
+        tick3(i % 2 ? UPPER_UM + 100 : UPPER_UM - 100, P2_PA, low);
+        outside += a.out_dir != 0;
+        assert_int_equal(a.phase, LEVELER_ALG3_IDLE);
+        assert_true(out.compressor && out.acc_valve);
+    }
+    assert_true(outside > 0); /* the noise did read outside */
+    unsigned ticks = 0;
+    while (a.phase == LEVELER_ALG3_IDLE && ticks++ < 2000) { /* a real departure: confirmed, a vent */
+        tick3(UPPER_UM + 2540, P2_PA, low);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_VENTING);
+    assert_false(out.compressor);
+    assert_false(a.recharging);
+}
+
 /* Drive a fill: stuck at h0 while P2 rises 100 Pa per tick, break-away at
  * p_break, then a climb at 10 mm/s with P2 steady. Returns the break-away height. */
 static int32_t stuck_then_climb(int32_t h0, int32_t p_start, int32_t p_break, unsigned climb_ticks)
@@ -667,6 +699,7 @@ int main(void)
         cmocka_unit_test_setup(test_dwell, setup),
         cmocka_unit_test_setup(test_min_off_between_moves, setup),
         cmocka_unit_test_setup(test_accumulator_duties, setup),
+        cmocka_unit_test_setup(test_recharge_through_noise_at_the_edge, setup),
         cmocka_unit_test_setup(test_learns_up_line_at_breakaway, setup),
         cmocka_unit_test_setup(test_rejects_implausible_line_points, setup),
         cmocka_unit_test_setup(test_learning_off, setup),
