@@ -65,7 +65,8 @@ def test_a_fit_with_bounded_starts_is_the_fit_of_the_full_count(cplant):
     eff = fx.get("leak")
     cand = fit._starts(eff, range(1), 16, seed=5)
     fun = fit._residual(prob, eff)
-    u_full, c_full = fit._search(fun, cand, 20, 2)
+    full = [float(np.sum(fun(u) ** 2)) for u in cand]   # every start costed in full
+    u_full, c_full = fit._search(fun, cand, 20, 2, costs=full)
     n_full, prob.nsim = prob.nsim, 0
     u_b, c_b = fit._search(fun, cand, 20, 2, bounded=fit._bounded(prob, eff))
     assert c_b == c_full and np.array_equal(u_b, u_full)

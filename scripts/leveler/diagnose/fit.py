@@ -239,13 +239,10 @@ def start_costs(cand, bounded, keep):
 
 def _search(fun, cand, max_nfev, polish, costs=None, bounded=None):
     """least_squares over the unit box from the `polish` lowest of the starts cand
-    (their costs computed here unless given: by `bounded`, start_costs, when given); the
-    best point and its cost."""
+    (their costs given, or costed here by `bounded`: start_costs); the best point and its cost."""
     d = cand.shape[1]
-    if costs is None and bounded is not None:
+    if costs is None:
         costs = start_costs(cand, bounded, max(1, polish))
-    elif costs is None:
-        costs = [float(np.sum(fun(u) ** 2)) for u in cand]
     order = np.argsort(costs)
     best_u, best_cost = cand[order[0]], costs[order[0]]
     for k in order[:polish]:
