@@ -4,7 +4,7 @@ Problem.cost_below): the kept starts, their order, their costs and the fit that
 follows must be those of the full count, which each test also makes."""
 import numpy as np
 
-from conftest import LB, thesis_schedule
+from conftest import thesis_schedule
 from leveler.diagnose import fit
 from leveler.diagnose import effects as fx
 from leveler.diagnose.model import REPLAY
