@@ -8,6 +8,7 @@ from . import calibrate
 from . import candidates
 from . import effects as fx
 from . import fit
+from . import shut_spring
 from .cplant import config_path
 from .confidence import EXPLAINS_PCT
 from .gap import shrink
@@ -40,7 +41,7 @@ def _jobs(ask):
     return ask.jobs or min(os.cpu_count() or 1, 2)
 
 
-def under_effect(ask, best, first, calib, holdout, folder, threshold):
+def under_effect(ask, best, first, calib, holdout, folder, threshold, why=None):
     """The leading effect (fitted on the config as given) leaves the held-out runs far
     from explained: a mis-set value beside it? The values are calibrated again with
     the effect in the model (its fit as given, held); kept when they close half of
@@ -48,9 +49,9 @@ def under_effect(ask, best, first, calib, holdout, folder, threshold):
     effect's misfit is otherwise taken up by values that are not wrong) and more than
     the noise gate. The report then describes the values alone (gaps without the
     effect; `first`, the calibration without it, has them at the config's values), and
-    the candidates are fitted with them (calibrated_basis). Returns (report, config,
-    runs) or None."""
-    ask.progress(f"      {best['effect']} leaves the held-out runs unexplained: the nominal values "
+    the candidates are fitted with them (calibrated_basis). why: what the progress
+    line says brought it here. Returns (report, config, runs) or None."""
+    ask.progress(f"      {why or best['effect'] + ' leaves the held-out runs unexplained'}: the nominal values "
                  f"calibrated again with {best['effect']} in the model")
     rep = calibrate.calibrate(ask.sim, config_path(ask.config), calib, holdout, ask.mode, folder,
                               max(threshold, EXPLAINS_PCT), ask.progress, jobs=_jobs(ask),
@@ -67,6 +68,37 @@ def under_effect(ask, best, first, calib, holdout, folder, threshold):
                why=f"calibrated with {best['effect']} in the model: " + rep["why"])
     rep["shrink_pct"] = shrink(rep["holdout_gap"]["before"], rep["holdout_gap"]["after"])
     return rep, config, runs
+
+
+def under_leak(ask, calibration, as_given, calib, holdout, folder, threshold, gate):
+    """The calibration runs' shut stretches show air leaving the spring
+    (shut_spring.leak_seen) and no effect as given is a leak: the values calibrated
+    again with that leak in the model (under_effect). Returns (report, config, runs)
+    when the model with it leaves a held-out gap below the calibration alone's and
+    the leading effect's alone by more than the alike share and the noise gate;
+    else None (the diagnosis goes on as without it)."""
+    if not calibration or as_given[0]["effect"] == shut_spring.LEAK:
+        return None
+    seen = shut_spring.leak_seen(ask, calib)
+    if not seen:
+        return None
+    area = seen["params"]["leak_area_m2"]
+    entry = {"effect": shut_spring.LEAK, "params": {k: {"value": v} for k, v in seen["params"].items()}}
+    again = under_effect(ask, entry, calibration, calib, holdout, folder, threshold,
+                         why=f"the spring loses air with its valves shut ({'+'.join(f'{s:.1f}' for s in seen['seconds'])}"
+                             f" s at the runs' starts: a leak of {area:.3g} m^2, gap there {seen['gap'][0]:.3f} -> "
+                             f"{seen['gap'][1]:.3f})")
+    if not again:
+        return None
+    g = again[0]["under_effect"]["holdout_gap"]["after"]
+    g_cal = calibration["holdout_gap"]["after" if calibration["kept"] else "before"]
+    rival = min(g_cal, as_given[0]["holdout_gap"])
+    if not (g < (1.0 - calibrate.ALIKE_SHARE) * rival and rival - g >= gate):
+        ask.progress(f"      with the leak the calibration leaves {g:.3f}, against {rival:.3f} without it: "
+                     f"not better, the leak is left to the candidates")
+        return None
+    again[0].update(shut_spring=seen, alone={k: calibration[k] for k in ("why", "holdout_gap", "shrink_pct")})
+    return again
 
 
 def beside_effects(calibration, ranking):

@@ -48,8 +48,14 @@ def _diagnose(ask, evidence, calib, holdout, folder):
     gate = fit.NOISE_GAIN * noise
     handles = calibration_path.beside_effects(calibration, as_given)
     given = basis
-    if calibration and calibration["kept"] and not calibration_path.effect_first(calibration, as_given[0], gate,
-                                                                                  ask.progress):
+    leak = calibration_path.under_leak(ask, calibration, as_given, calib, holdout, folder, threshold, gate)
+    if leak:
+        # a leak seen with the valves shut: the values calibrated with it, the candidates fitted on them
+        calibration, cal_config, cal_runs = leak
+        handles = calibration_path.beside_effects(calibration, as_given)
+        basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
+    elif calibration and calibration["kept"] and not calibration_path.effect_first(calibration, as_given[0], gate,
+                                                                                    ask.progress):
         # the calibration stands: an effect must explain what it leaves, fitted with it
         basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
     elif calibration and calibration.get("superseded_by") and evidence.fits_pairs and \

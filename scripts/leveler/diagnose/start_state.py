@@ -11,12 +11,12 @@ CHATTER_SWITCHES = 4    # compressor switches within a second that make a stretc
 CHATTER_SMOOTH_S = 0.1  # the P1 a chattering stretch regulates to: logged P1 averaged over +-this
 
 
-def _quiet_end(run):
+def quiet_end(run, max_s=QUIET_MAX_S):
     """Index where the quiet start ends: the first load change or valve switch
-    (at most QUIET_MAX_S). Compressor switching does not end it: with
+    (at most max_s; None: no limit). Compressor switching does not end it: with
     algorithm 2 at the accumulator's charge limit it may switch every tick."""
     t = run.t_s
-    end = int(np.searchsorted(t, t[0] + QUIET_MAX_S))
+    end = len(t) if max_s is None else int(np.searchsorted(t, t[0] + max_s))
     changes = [np.flatnonzero(np.abs(np.diff(run.load_n)) > 1.0)]
     changes += [np.flatnonzero(np.diff(v) != 0) for k, v in run.commands.items() if k != "compressor"]
     for c in changes:
@@ -44,7 +44,7 @@ def initial_state(run):
     over the first second (the motor speed is never logged). A P1 column that
     is empty takes P3 when the accumulator valve is open, else P2 (the pipe
     equalises with what it is open to)."""
-    t, end = run.t_s, _quiet_end(run)
+    t, end = run.t_s, quiet_end(run)
     sig = run.signals
     h = _start_value(t, sig["height_m"], end, False)
     p2 = _start_value(t, sig["p_spring_pa"], end, False)
