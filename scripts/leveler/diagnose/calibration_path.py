@@ -67,6 +67,7 @@ def under_effect(ask, best, first, calib, holdout, folder, threshold, why=None):
                handles=(cal0, hold0, u, chosen),
                why=f"calibrated with {best['effect']} in the model: " + rep["why"])
     rep["shrink_pct"] = shrink(rep["holdout_gap"]["before"], rep["holdout_gap"]["after"])
+    rep["alone"] = {k: first[k] for k in ("why", "holdout_gap", "shrink_pct")}
     return rep, config, runs
 
 
@@ -97,7 +98,7 @@ def under_leak(ask, calibration, as_given, calib, holdout, folder, threshold, ga
         ask.progress(f"      with the leak the calibration leaves {g:.3f}, against {rival:.3f} without it: "
                      f"not better, the leak is left to the candidates")
         return None
-    again[0].update(shut_spring=seen, alone={k: calibration[k] for k in ("why", "holdout_gap", "shrink_pct")})
+    again[0]["shut_spring"] = seen
     return again
 
 

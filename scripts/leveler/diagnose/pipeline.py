@@ -48,25 +48,21 @@ def _diagnose(ask, evidence, calib, holdout, folder):
     gate = fit.NOISE_GAIN * noise
     handles = calibration_path.beside_effects(calibration, as_given)
     given = basis
-    leak = calibration_path.under_leak(ask, calibration, as_given, calib, holdout, folder, threshold, gate)
-    if leak:
-        # a leak seen with the valves shut: the values calibrated with it, the candidates fitted on them
-        calibration, cal_config, cal_runs = leak
-        handles = calibration_path.beside_effects(calibration, as_given)
-        basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
-    elif calibration and calibration["kept"] and not calibration_path.effect_first(calibration, as_given[0], gate,
-                                                                                    ask.progress):
+    # a leak seen with the valves shut: the values calibrated with it in the model
+    again = calibration_path.under_leak(ask, calibration, as_given, calib, holdout, folder, threshold, gate)
+    if again is None and calibration and calibration["kept"] and \
+            not calibration_path.effect_first(calibration, as_given[0], gate, ask.progress):
         # the calibration stands: an effect must explain what it leaves, fitted with it
         basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
-    elif calibration and calibration.get("superseded_by") and evidence.fits_pairs and \
+    elif again is None and calibration and calibration.get("superseded_by") and evidence.fits_pairs and \
             as_given[0]["shrink_pct"] >= basis.threshold and leaves_much(as_given[0], noise):
-        # the calibration was kept, then set aside for the effect (effect_first)
+        # the calibration was kept, then set aside for the effect (effect_first): a mis-set value beside it?
         again = calibration_path.under_effect(ask, as_given[0], calibration, calib, holdout, folder, threshold)
-        if again:
-            again[0]["alone"] = {k: calibration[k] for k in ("why", "holdout_gap", "shrink_pct")}
-            calibration, cal_config, cal_runs = again
-            handles = calibration_path.beside_effects(calibration, as_given)
-            basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
+    if again:
+        # the values calibrated under an effect stand: the candidates are fitted on them
+        calibration, cal_config, cal_runs = again
+        handles = calibration_path.beside_effects(calibration, as_given)
+        basis = calibration_path.calibrated_basis(ask, evidence, calibration, handles, cal_runs, basis)
     verdict = _verdict(ask, evidence, basis, noise, gate)
     if basis.calibrated and (verdict.finding or verdict.named and leaves_much(verdict.top(basis.ranking), noise)):
         basis, verdict = _effects_after_all(ask, evidence, calibration, basis, verdict, given, noise, gate)
