@@ -4,8 +4,8 @@
  * order, SI; "nominal" values give the nominal plant:
  *   thermal         tau_thermal_s (0: fixed polytropic n); wall's share of the gas's heat
  *                   capacity (0: a wall held at ambient), wall-to-room s, warm delivery (relative)
- *   area            A = A_nom (1 + a0 + a1 d + a2 d^2), d = y - y_ref held within +-50 mm:
- *                   a1 rel/m, a2 rel/m^2, a0 relative
+ *   area            A = A_nom (1 + a0 + a1 d + a2 d^2 + a3 dp), d = y - y_ref held within +-50 mm,
+ *                   dp = P2 - P2 at the start: a1 rel/m, a2 rel/m^2, a0 relative, a3 rel/Pa
  *   friction        Coulomb N, Stribeck N, Stribeck velocity m/s
  *   valve_dynamics  open delay s, close delay s, the opening's lag after the delay s (0: the
  *                   valve opens and shuts at once)
@@ -39,12 +39,15 @@ static void thermal_rhs(const plant_fx *f, const double *q, const double *x, dou
 const plant_fx_ops fx_thermal_ops = {.stage = PLANT_FX_STAGE_GAS, .uses = PLANT_FX_USES_GAS_T | PLANT_FX_USES_WALL_T,
                                      .rhs = thermal_rhs};
 
-/* ---- area: a quadratic in height, flat past +-50 mm (the rolling lobe) ---- */
+/* ---- area: a quadratic in height, flat past +-50 mm (the rolling lobe), and
+ * linear in the spring's pressure above the start's (q3: a bellows bulges with
+ * its pressure, which moves the effective area of a rolling lobe) ---- */
 static void area_rhs(const plant_fx *f, const double *q, const double *x, double *dx, plant_flows *fl)
 {
     (void)fl;
     double d = fmax(-0.05, fmin(0.05, x[PLANT_X_Y] - f->y_ref_m));
-    plant_fx_scale_area(f, x, dx, 1.0 + q[2] + q[0] * d + q[1] * d * d);
+    double dp = q[3] != 0.0 ? x[PLANT_X_P_SPRING] - f->pl.p.init_p_spring_pa : 0.0;
+    plant_fx_scale_area(f, x, dx, 1.0 + q[2] + q[0] * d + q[1] * d * d + q[3] * dp);
 }
 const plant_fx_ops fx_area_ops = {.stage = PLANT_FX_STAGE_GEOMETRY, .rhs = area_rhs};
 

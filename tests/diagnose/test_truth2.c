@@ -284,6 +284,44 @@ static void test_mass_is_conserved(void **state)
     }
 }
 
+/* The area candidate's pressure term (effects_candidates.c: the effective area
+ * relative to the start's spring pressure, a bellows whose lobe bulges with it)
+ * and this family's lobe at zero curvature (truth2.c, written apart from the
+ * candidates) are one physics coded twice: the same open-loop cycle (a fill,
+ * a rest, a vent and a load step) gives the same plant, within 1 um, 1 Pa.
+ * The term moves the plant: 2 % per bar shifts the height by over 0.5 mm. */
+static void test_area_pressure_term_is_the_lobe(void **state)
+{
+    (void)state;
+    const plant_fx_model *cand = plant_fx_find(plant_fx_catalogue, plant_fx_catalogue_count, 2);
+    assert_non_null(cand);
+    assert_string_equal(cand->name, "area");
+    plant_params p = thesis(false);
+    static plant_fx a, b, nom;
+    const double per_bar = 0.02;
+    double qa[PLANT_FX_MAX_PARAMS] = {0.0, 0.0, 0.0, per_bar / 1e5}, qb[PLANT_FX_MAX_PARAMS] = {0.0, per_bar};
+    double q0[PLANT_FX_MAX_PARAMS] = {0.0};
+    assert_int_equal(plant_fx_init(&a, &p, cand, qa), 0);
+    assert_int_equal(plant_fx_init(&b, &p, form(AREA_LOBE), qb), 0);
+    assert_int_equal(plant_fx_init(&nom, &p, cand, q0), 0);
+    double moved = 0.0;
+    for (int k = 0; k < 3000; k++) {
+        double t = k * 0.01;
+        plant_inputs in = {t < 8.0, t < 8.0 || (t >= 15.0 && t < 21.0), t >= 15.0 && t < 21.0, false,
+                           (t < 5.0 ? 900.0 : 1100.0) * PLANT_N_PER_LBF};
+        plant_fx *all[3] = {&a, &b, &nom};
+        for (int m = 0; m < 3; m++) {
+            plant_fx_set_inputs(all[m], &in);
+            plant_fx_advance(all[m], 0.01, 10);
+        }
+        assert_true(fabs(a.pl.x[PLANT_X_Y] - b.pl.x[PLANT_X_Y]) < 1e-6);
+        assert_true(fabs(a.pl.x[PLANT_X_P_SPRING] - b.pl.x[PLANT_X_P_SPRING]) < 1.0);
+        moved = fmax(moved, fabs(a.pl.x[PLANT_X_Y] - nom.pl.x[PLANT_X_Y]));
+    }
+    print_message("the pressure term moved the height by up to %.3f mm\n", moved * 1e3);
+    assert_true(moved > 0.5e-3);
+}
+
 /* A valve told to shut is shut once its dead time and stroke are over: air
  * never flows against the pressure difference and a shut valve passes none.
  * The spring valve opens onto a pipe well below the spring for 0.5 s and
@@ -359,6 +397,7 @@ int main(void)
         cmocka_unit_test(test_limits_are_the_nominal_plant),
         cmocka_unit_test(test_mass_is_conserved),
         cmocka_unit_test(test_shut_valves_pass_no_air),
+        cmocka_unit_test(test_area_pressure_term_is_the_lobe),
         cmocka_unit_test(test_sensor_forms_report_as_described),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
