@@ -127,8 +127,11 @@ void plant_fx_advance(plant_fx *f, double dt_s, int substeps)
             }
         if (n < 1)
             n = 1;
-        for (int i = 0; i < n; i++)
+        f->substeps = n;
+        for (int i = 0; i < n; i++) {
+            f->substep = i;
             rk4_step(f, dt_s / n);
+        }
     }
     /* the transducer filters start from the first tick's values; they filter
      * what the transducers see where they sit (the models before the sensors') */

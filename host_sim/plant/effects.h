@@ -120,6 +120,7 @@ struct plant_fx {
     bool eff_before[2];
     double switch_in_s[2];
     double tick_s;
+    int substep, substeps; /* the RK4 substep under way in this tick, of how many */
     /* transport delay of the compressor flow */
     double mc_buf[PLANT_FX_DELAY_TICKS];
     int mc_head;
