@@ -52,17 +52,23 @@ static plant_params thesis(void)
 }
 
 /* 30 s: charge 8 s, rest 7 s, vent 6 s, rest; load 900 lb then 1100 lb from 5 s;
- * this many RK4 substeps a tick. */
-static void cycle_substeps(plant_fx *f, int substeps)
+ * the inputs set every 10 ms, the plant advanced on ticks of dt_s (a divisor
+ * of 10 ms) in this many RK4 substeps a tick. */
+static void cycle_on(plant_fx *f, double dt_s, int substeps)
 {
+    int per = (int)lround(0.01 / dt_s);
     for (int k = 0; k < 3000; k++) {
         double t = k * 0.01;
         plant_inputs in = {t < 8.0, t < 8.0 || (t >= 15.0 && t < 21.0), t >= 15.0 && t < 21.0, false,
                            t < 5.0 ? 4003.4 : 4893.0};
-        plant_fx_set_inputs(f, &in);
-        plant_fx_advance(f, 0.01, substeps);
+        for (int j = 0; j < per; j++) {
+            plant_fx_set_inputs(f, &in);
+            plant_fx_advance(f, dt_s, substeps);
+        }
     }
 }
+
+static void cycle_substeps(plant_fx *f, int substeps) { cycle_on(f, 0.01, substeps); }
 
 static void cycle(plant_fx *f) { cycle_substeps(f, 10); }
 
@@ -197,21 +203,6 @@ static void test_line_hose(void **state)
     assert_true(fabs(tiny.pl.x[PLANT_X_Y] - nominal.pl.x[PLANT_X_Y]) < 1e-3);
 }
 
-/* The charge/rest/vent cycle of cycle_substeps on ticks of dt_s, one RK4 substep each. */
-static void cycle_ticks(plant_fx *f, double dt_s)
-{
-    int per = (int)lround(0.01 / dt_s);
-    for (int k = 0; k < 3000; k++) {
-        double t = k * 0.01;
-        plant_inputs in = {t < 8.0, t < 8.0 || (t >= 15.0 && t < 21.0), t >= 15.0 && t < 21.0, false,
-                           t < 5.0 ? 4003.4 : 4893.0};
-        for (int j = 0; j < per; j++) {
-            plant_fx_set_inputs(f, &in);
-            plant_fx_advance(f, dt_s, 1);
-        }
-    }
-}
-
 /* The hose's exchange is implicit and split from the RK4 substeps, half a tick
  * before and half after them. The reference is the same equations on 0.1 ms
  * ticks (the splitting's error vanishes). At the config's 10 ms ticks and 2
@@ -231,7 +222,7 @@ static void test_line_hose_split_converges(void **state)
         assert_int_equal(plant_fx_init(&coarse, &p, candidate(LINE_DELAY), q), 0);
         assert_int_equal(plant_fx_init(&fine, &p, candidate(LINE_DELAY), q), 0);
         cycle_substeps(&coarse, 2);
-        cycle_ticks(&fine, 1e-4);
+        cycle_on(&fine, 1e-4, 1);
         assert_true(fabs(coarse.pl.x[PLANT_X_P_SPRING] - fine.pl.x[PLANT_X_P_SPRING]) < 15.0);
         assert_true(fabs(coarse.xe[PLANT_FX_XE_AUX + 1] - fine.xe[PLANT_FX_XE_AUX + 1]) < 15.0);
         assert_true(fabs(coarse.pl.x[PLANT_X_Y] - fine.pl.x[PLANT_X_Y]) < 6e-6);
