@@ -176,13 +176,21 @@ def _starts(effect, idx, starts, seed):
     return np.vstack([off[list(idx)], cand]) if off is not None else cand
 
 
+PROBE_NFEV = 5    # evaluations that probe the whole box's best start of a nested fit
+
+
 def fit_nested(problem, effect, starts=None, max_nfev=60, seed=0, polish=4):
     """An effect with extensions (effects.json `extends`): the base model first,
     the extensions at their nominal values (the very fit the base alone gets),
-    then the whole model from the base's optimum, and also from the best
-    quasi-random start of the whole box when that starts lower. Extensions
-    cannot lose the base's fit, and the base's basins are not diluted in a
-    box of more dimensions under the same budget."""
+    then the whole model from the base's optimum. The best quasi-random start
+    of the whole box is probed too, even when it starts higher (the extensions
+    can open a basin the base's optimum does not lead to: a pipe of three
+    segments, 0.72 from the base's optimum, 0.27 from the whole box's best
+    start), with PROBE_NFEV evaluations, and polished on only when it is then
+    the lower: a full polish of a start that leads nowhere cost 10 s. A start
+    lower than the base's optimum is polished in full from the outset.
+    Extensions cannot lose the base's fit, and the base's basins are not
+    diluted in a box of more dimensions under the same budget."""
     d = len(effect.params)
     base = [i for i, p in enumerate(effect.params) if not p.extends]
     nominal = np.asarray(to_unit(effect, effect.nominal()), dtype=float)
@@ -197,9 +205,15 @@ def fit_nested(problem, effect, starts=None, max_nfev=60, seed=0, polish=4):
                          bounded=lambda ub, bound: bounded(embed(ub), bound))
     u0 = embed(ub)
     whole = qmc.Halton(d, scramble=True, seed=seed).random(max(2, starts or start_count(d)))
-    costs = [_or_inf(bounded(u, cost_b)) for u in whole]    # only those under the base's cost can be used
-    first = [u0] + ([whole[int(np.argmin(costs))]] if min(costs) < cost_b else [])
-    u, cost = _search(fun, np.asarray(first), max_nfev, len(first), [cost_b] + sorted(costs)[:len(first) - 1])
+    costs = start_costs(whole, bounded, 1)
+    k = int(np.argmin(costs))
+    u, cost = _search(fun, np.asarray([u0]), max_nfev, 1, [cost_b])
+    probe = costs[k] >= cost_b and PROBE_NFEV < max_nfev    # a start under the base's: polished in full
+    uw, cw = _search(fun, np.asarray([whole[k]]), PROBE_NFEV if probe else max_nfev, 1, [costs[k]])
+    if probe and cw < cost:
+        uw, cw = _search(fun, np.asarray([uw]), max_nfev, 1, [cw])
+    if cw < cost:
+        u, cost = uw, cw
     return _fit_result(problem, effect, u, cost)
 
 
