@@ -86,3 +86,40 @@ def test_without_a_kept_pair_the_ranked_second_is_the_leaders():
     s = pairs.ranked_second(first + second, None, "thermal")
     assert (s["effect"], s["pair"]) == ("sensor_lag", "thermal+sensor_lag")
     assert pairs.ranked_second(first + second, second[0], "thermal")["pair"] == "sensor_lag+line_delay"
+
+
+def measured(nominal, singles, pairs_gaps):
+    """A case's ranking and pair entries from its held-out gaps (pair: (gap, screening fit))."""
+    ranking = [{"effect": n, "holdout_gap": g, "shrink_pct": 100.0 * (1.0 - g / nominal)} for n, g in singles.items()]
+    by = {r["effect"]: r for r in ranking}
+    out = []
+    for name, (gap, screen) in pairs_gaps.items():
+        first = by[name.split("+")[0]]
+        shrink = 100.0 * (1.0 - gap / nominal)
+        out.append({"effect": name, "effects": name.split("+"), "holdout_gap": gap, "shrink_pct": shrink,
+                    "evidence": -1.0, "delta_bic": -50.0, "gain_pts": shrink - first["shrink_pct"], "screen": screen,
+                    "closes_pct_of_leader_gap": 100.0 * (1.0 - gap / first["holdout_gap"]), "kept": False})
+    return by, out
+
+
+def test_a_second_another_partner_nearly_matches_is_not_named_and_still_explains():
+    # offform seed 4, a thermal wall alone (no second effect): thermal leaves 0.646, area closes
+    # 60 % of it, friction's screening fit 34 %: any flexible partner fits the off-form residual
+    by, entries = measured(2.775, {"thermal": 0.646, "area": 1.181, "friction": 2.029, "sensor_lag": 2.713},
+                           {"thermal+area": (0.258, False), "thermal+sensor_lag": (0.450, False),
+                            "thermal+friction": (0.428, True)})
+    full = entries[:2]
+    assert pairs.judge(full, by, 15.0, others=entries) is None
+    assert full[0]["explains"] and "not told apart from friction" in full[0]["why_not"][0]
+    assert pairs.explaining(full, None) is full[0]              # the gap is explained, by thermal + a second
+    assert pairs.judge(full[:1], by, 15.0) is full[0]           # judged without the other partners: kept
+
+
+def test_a_true_pair_far_ahead_of_the_other_partners_is_named():
+    # present seed 2, line_delay + area: area closes 44 % of line_delay's gap, thermal 8 %
+    by, entries = measured(3.047, {"line_delay": 0.533, "thermal": 1.239, "area": 2.093, "valve_dynamics": 2.718},
+                           {"line_delay+area": (0.296, False), "line_delay+thermal": (0.488, False),
+                            "line_delay+valve_dynamics": (0.506, True)})
+    kept = pairs.judge(entries[:2], by, 15.0, others=entries)
+    assert kept is entries[0] and kept["ahead_of"]["partner"] == "thermal"
+    assert not entries[1]["explains"]                          # fails rule 1 too: not an explanation

@@ -105,7 +105,7 @@ def pair_step(ask, basis, gate=0.0, noise=0.0):
     if not entries:
         return [], None, None
     by = {r["effect"]: r for r in ranking}
-    kept = pairs.judge(full, by, basis.threshold, basis.gaps[1] - gate)
+    kept = pairs.judge(full, by, basis.threshold, basis.gaps[1] - gate, others=entries.values())
     again = pairs.second_round(ranking, list(entries.values()), kept, noise)
     if again:
         ask.progress(f"      the pairs on top of {ranking[0]['effect']} leave the held-out runs over "
@@ -113,7 +113,8 @@ def pair_step(ask, basis, gate=0.0, noise=0.0):
                      f"{ranking[0]['effect']}")
         more, full2 = _pair_round(ask, basis, again)
         entries.update(more)
-        kept = pairs.judge(full + full2, by, basis.threshold, basis.gaps[1] - gate, ranking[0]["effect"])
+        kept = pairs.judge(full + full2, by, basis.threshold, basis.gaps[1] - gate, ranking[0]["effect"],
+                           entries.values())
     out = sorted(entries.values(), key=lambda e: e["evidence"])
     for e in out:
         ask.progress(f"      {e['effect']:<31} {e['shrink_pct']:+.1f}% ({e['gain_pts']:+.1f} points over "

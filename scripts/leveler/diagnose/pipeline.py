@@ -14,6 +14,7 @@ from . import candidates as cand
 from . import certainty
 from . import effects as fx
 from . import fit
+from . import pairs
 from . import result as result_mod
 from .confidence import leaves_much
 from .context import Ask, Basis, Verdict
@@ -113,7 +114,8 @@ def _verdict(ask, evidence, basis, noise, gate):
                      f"less than half the gap of the logs' own noise ({gate:.3f}): no evidence of an effect")
     pair_list, kept, second = (cand.pair_step(ask, basis, gate, noise) if evidence.fits_pairs and not basis.calibrated
                                else ([], None, None))
-    finding = evidence.unexplained(basis.hold_problem, basis.holdout, basis.ranking, kept, basis.gaps[1], noise,
+    finding = evidence.unexplained(basis.hold_problem, basis.holdout, basis.ranking,
+                                   pairs.explaining(pair_list, kept), basis.gaps[1], noise,
                                    basis.threshold, ask.progress)
     named = (named_single or kept is not None) and finding is None
     lead = kept["effects"][0] if kept else best["effect"]     # a kept pair's first: its round's leader
