@@ -115,3 +115,23 @@ def test_no_hint_under_the_threshold_or_with_an_effect_named():
     assert confidence.hinted([], HINTED, 15.0, {"why": "not explained"}) is None
     # without a threshold (the callers before it) the levels are as they were
     assert confidence.assess([], HINTED, 2.28, 1.0, None, None, None)["level"] == "likely"
+
+
+def friction(coulomb, stribeck, v, pinned):
+    return {"coulomb_n": {"value": coulomb, "identifiable": pinned[0]},
+            "stribeck_n": {"value": stribeck, "identifiable": pinned[1]},
+            "stribeck_v_m_s": {"value": v, "identifiable": pinned[2]}}
+
+
+def test_an_effect_whose_parameters_the_logs_do_not_pin_is_unsure():
+    # unknown_stiffness seed 7 (outside the catalogue): friction closes 67.5 %, 35 points ahead,
+    # with every 95 % interval the whole range (Coulomb 333 N in 0..800)
+    ranking = [{"effect": "friction", "shrink_pct": 67.5, "params": friction(333.4, 164.8, 0.0044, (False,) * 3)},
+               {"effect": "sensor_lag", "shrink_pct": 32.0}]
+    a = confidence.assess(["friction"], ranking, 4.0, 0.116, None, None, None)
+    assert a["level"] == "unsure" and a["set"] == ["friction", "not explained"]
+    assert "pin none of its parameters" in a["why"]
+    # offform friction_seal seed 7 (right): Coulomb 43.5 +- 1.8 N pinned, the Stribeck speed not
+    ranking[0]["params"] = friction(43.5, 0.0, 0.0044, (True, True, False))
+    assert confidence.assess(["friction"], ranking, 4.0, 0.116, None, None, None)["level"] == "likely"
+    assert confidence.pinned([{"effect": "leak", "shrink_pct": 90.0}], "leak")     # no flags (published figures)

@@ -8,7 +8,8 @@ right measured for it on the blind test's second truth family (forms written
 apart from the candidates, host_sim/blindtest/truth2.json; data/confidence.json,
 docs/diagnosis.md): "sure" is said only where that was right at least 19 times
 in 20. Below "sure", the set the logs cannot separate, why, and the experiment
-(experiment.csv) that would.
+(experiment.csv) that would. An effect whose parameters the logs pin none of is
+`unsure` with "not explained" in its set (pinned).
 
 "Not explained by any candidate": the calibrated model leaves a gap well above
 the noise, and the best candidate closes less than half of it, or less than two
@@ -138,6 +139,11 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
     elif lookalikes:
         level, cset = "unsure", list(lookalikes)
         why = "these candidates explain the logs equally well (each refitted on the other's runs)"
+    elif not pinned(ranking, effects[0]):
+        level, cset = "unsure", [effects[0], "not explained"]
+        why = (f"{effects[0]} closes {best['shrink_pct']:.0f}% of the held-out gap, but these logs pin none of "
+               f"its parameters (each 95 % interval wider than its range): something acts as it would, its "
+               f"size is not seen")
     elif (margin >= SURE_MARGIN_PTS and best["shrink_pct"] >= SURE_EFFECT_SHRINK
           and (noise <= 0 or left <= UNEXPLAINED_NOISE * noise)):
         level, cset = "sure", list(effects)
@@ -150,6 +156,17 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
                f"{'' if best['shrink_pct'] >= SURE_EFFECT_SHRINK else ' and closes ' + format(best['shrink_pct'], '.0f') + '% of the gap'}")
     return {"level": level, "probability": _probability(level), "set": cset, "why": why,
             "experiment": exp if level != "sure" else None}
+
+
+def pinned(ranking, name):
+    """Whether the logs pin at least one parameter of the named effect (its single fit's
+    identifiable flags; true without them, as on published figures). A parallel
+    stiffness outside the catalogue was named friction with a Coulomb force anywhere in
+    0..800 N (any friction large enough holds the platform where the stiffness does);
+    a true friction's was 43.5 +- 1.8 N."""
+    entry = next((r for r in ranking if r["effect"] == name), None)
+    flags = [v.get("identifiable", True) for v in ((entry or {}).get("params") or {}).values()]
+    return not flags or any(flags)
 
 
 def leaves_much(entry, noise):
