@@ -3,6 +3,8 @@ the candidates are judged against, and the verdict."""
 from dataclasses import dataclass
 from typing import Any, Callable, Optional
 
+from . import pairs
+
 
 @dataclass
 class Ask:
@@ -51,3 +53,9 @@ class Verdict:
     def top(self, ranking):
         """The named entry (the kept pair, else the leader), or None."""
         return (self.kept or ranking[0]) if self.named else None
+
+    def explains(self, ranking):
+        """The entry the named verdict's held-out gap stands on, or None: the kept pair,
+        else a pair whose second is not told apart (pairs.explaining: the leader is named
+        alone, a second effect is there), else the leader."""
+        return (pairs.explaining(self.pair_list, self.kept) or ranking[0]) if self.named else None

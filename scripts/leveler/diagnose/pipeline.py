@@ -138,12 +138,12 @@ def _effects_after_all(ask, evidence, calibration, basis, verdict, given, noise,
     ask.progress(f"      the calibrated model{' with ' + named['effect'] if named else ''} leaves the held-out "
                  f"runs unexplained ({g_cal:.3f}): the effects on the config as given, pairs included")
     alt = _verdict(ask, evidence, given, noise, gate)
-    top = alt.top(given.ranking)
-    if top is None or alt.finding or not top["holdout_gap"] < g_cal:
+    explains = alt.explains(given.ranking)
+    if explains is None or alt.finding or not explains["holdout_gap"] < g_cal:
         ask.progress("      no better on the config as given: the calibration stands"
                      + (f" with {named['effect']}" if named else ", unexplained"))
         return basis, verdict
-    calibration_path.set_aside(calibration, fx.combine(alt.effects), top["holdout_gap"],
+    calibration_path.set_aside(calibration, fx.combine(alt.effects), explains["holdout_gap"],
                                "explains what the calibration leaves unexplained; calibration not kept",
                                ask.progress)
     return given, alt
