@@ -6,7 +6,18 @@
  * The module here (a thread on the pty's master side, frames and CRC written
  * from the Modbus over serial line specification) answers request k with the
  * register value k, so a reply is matched to its request by its value. Every
- * third request is answered 12 ms late against a 10 ms timeout. */
+ * third request is answered 60 ms late against a 40 ms timeout, the others
+ * after 1 ms: the late reply falls inside the link's drain window (timeout to
+ * twice the timeout), 20 ms from either edge.
+ *
+ * What must hold on any machine: no answer is another request's (stale 0),
+ * and the late replies happened and were discarded. The counts of timeouts
+ * are the machine's: a prompt request times out when the process is starved
+ * for 39 ms (its reply then arrives late and must be discarded like the
+ * others), and a late one is answered in time only when it is starved for
+ * 20 ms (the reply is then its own). They are printed; the exact counts were
+ * asserted, with 12 ms against 10 ms, until a CPU-starved CI machine answered
+ * one late reply within the timeout. */
 #define _DEFAULT_SOURCE
 #include <stdarg.h>
 #include <stddef.h>
@@ -27,8 +38,8 @@
 
 #include "modbus_link.h"
 
-#define TIMEOUT_MS 10
-#define LATE_MS 12
+#define TIMEOUT_MS 40
+#define LATE_MS 60
 #define REQUESTS 60
 
 static int master_fd;
@@ -114,7 +125,7 @@ static void late_replies_are_never_taken_for_the_next_answer(void **state)
 
     /* The module counts requests as they reach it: request i is answered
      * with i, so an answer other than the request's own number is stale. */
-    int answered = 0, timed_out = 0, stale = 0;
+    int answered = 0, timed_out = 0, stale = 0, late_answered = 0;
     for (int i = 0; i < REQUESTS; i++) {
         modbus_t *ctx = rig_link_begin(link);
         assert_non_null(ctx);
@@ -126,20 +137,24 @@ static void late_replies_are_never_taken_for_the_next_answer(void **state)
             continue;
         }
         answered++;
+        late_answered += i % 3 == 0;
         stale += v != i;
         if (v != i)
             print_message("request %d answered with %u (a late reply to request %u)\n", i, v, v);
     }
-    print_message("%d requests: %d answered, %d timed out, %d stale answers, %u late reads discarded\n", REQUESTS,
-                  answered, timed_out, stale, rig_link_get_stats(link).late_bytes_discarded);
+    unsigned discarded = rig_link_get_stats(link).late_bytes_discarded;
+    print_message("%d requests: %d answered, %d timed out (%d prompt ones, the machine starved), %d stale answers, "
+                  "%u late reads discarded\n",
+                  REQUESTS, answered, timed_out, timed_out - (REQUESTS / 3 - late_answered), stale, discarded);
     atomic_store(&stop_module, true);
     pthread_join(th, NULL);
     rig_link_close(link);
     close(master_fd);
     close(slave_fd);
     assert_int_equal(stale, 0);
-    assert_int_equal(timed_out, REQUESTS / 3);       /* exactly the late ones failed */
-    assert_int_equal(answered, REQUESTS - REQUESTS / 3);
+    assert_int_equal(answered + timed_out, REQUESTS);
+    assert_true(timed_out >= REQUESTS / 6);          /* the late scenario ran, most of its 20 times */
+    assert_true(discarded >= (unsigned)timed_out / 2); /* and their replies reached the link and were dropped */
 }
 
 int main(void)

@@ -19,9 +19,12 @@ Counted, each must be zero:
                          itself is frozen or restarting), or the compressor
                          on above the overpressure limit
   missed_ticks           tick_overruns increments with no fault under way
-                         (those while a probe process beside the rig also
-                         woke late, the machine short of CPU, are printed
-                         apart)
+                         (those while the machine was short of CPU are
+                         printed apart: a probe process beside the rig woke
+                         late, the rig or its module waited on a run queue
+                         for half a tick, or the hypervisor stole a tick's
+                         worth, 10 ms; the share of polls so marked is
+                         printed)
   rig_exits              the rig ended before the soak did
   torn_log_rows          lines with other than 10 fields in the run logs
   lost_log_rows          rows dropped outside a full-disk window, and gaps of
@@ -69,6 +72,27 @@ PROBE = ("import time,sys\n"
          "while True:\n"
          "    t = time.monotonic(); time.sleep(0.005); late = time.monotonic() - t - 0.005\n"
          "    if late > 0.008: print(f'{t:.4f} {late:.4f}', flush=True)\n")
+RUN_WAIT_NS = 5_000_000  # the rig or its module runnable but not run for half a tick
+STEAL_JIFFIES = 1        # a tick's worth (10 ms) of CPU taken by the hypervisor between two polls
+
+
+def run_wait_ns(pids):
+    """Nanoseconds the processes' threads have waited on a run queue
+    (field 2 of /proc/PID/task/TID/schedstat): ready to run, not running."""
+    total = 0
+    for pid in pids:
+        for f in Path(f"/proc/{pid}/task").glob("*/schedstat"):
+            try:
+                total += int(f.read_text().split()[1])
+            except (OSError, IndexError, ValueError):
+                pass  # a thread or process gone meanwhile
+    return total
+
+
+def steal_jiffies():
+    """CPU time the hypervisor took from this machine (/proc/stat, steal)."""
+    with open("/proc/stat") as f:
+        return int(f.readline().split()[8])
 
 
 def addr(name):
@@ -154,6 +178,7 @@ class Soak:
         self.watchdog_after_restart, self.faults_fired, self.notes = [], {k: 0 for k in KINDS}, []
         self.plant_lock, self.stop = threading.Lock(), threading.Event()
         self.probe_lock, self.probe_late, self.starved_ticks = threading.Lock(), [], 0
+        self.short = {"run_queue": 0, "steal": 0, "polls": 0}  # polls with the rig or its module starved, by cause
         self.t0 = time.monotonic()
 
     def now(self):
@@ -206,7 +231,7 @@ class Soak:
     def poll_rig(self):
         sv, module = rp.connect(self.rig.port), None
         prev_overruns, prev_dropped, prev_t, on_since = None, None, None, None
-        next_t = time.monotonic()
+        prev_cpu, next_t = None, time.monotonic()
         while not self.stop.is_set():
             next_t = max(next_t + 0.1, time.monotonic())  # a late poll is not made up by a burst
             self.stop.wait(max(0.0, next_t - time.monotonic()))
@@ -229,13 +254,20 @@ class Soak:
                 continue
             r = ir.registers
             overruns, dropped = rp.u32(r[24:26]), rp.u32(r[34:36])
+            cpu, cpu_short = self.cpu_sample(), None
+            if prev_cpu is not None:
+                cpu_short = self.cpu_short(prev_cpu, cpu)
+                waited = (f"the rig and its module waited {(cpu[0] - prev_cpu[0]) / 1e6:.1f} ms on a run queue, "
+                          f"{(cpu[1] - prev_cpu[1]) * 10} ms stolen")
+            prev_cpu = cpu
             quiet = not self.windows.active(t) and prev_t is not None and not self.windows.active(prev_t)
             if prev_overruns is not None and overruns > prev_overruns and quiet:
-                if self.starved(prev_t - 0.05, t):
+                if cpu_short or self.starved(prev_t - 0.05, t):
                     self.starved_ticks += overruns - prev_overruns
                 else:
                     self.counts["missed_ticks"] += overruns - prev_overruns
-                    self.notes.append(f"t={t:.1f} s: {overruns - prev_overruns} missed ticks with no fault under way")
+                    self.notes.append(f"t={t:.1f} s: {overruns - prev_overruns} missed ticks with no fault under way "
+                                      f"({waited})")
             if prev_dropped is not None and dropped > prev_dropped and not self.windows.active(t, ("full_disk",)):
                 self.counts["lost_log_rows"] += dropped - prev_dropped
                 self.notes.append(f"t={t:.1f} s: {dropped - prev_dropped} log rows dropped outside a full disk")
@@ -265,6 +297,29 @@ class Soak:
         sv.close()
         if module:
             module.close()
+
+    def cpu_sample(self):
+        """(run-queue wait of the rig and its module in ns, steal in jiffies)."""
+        with self.plant_lock:
+            pids = self.rig_pids() + [self.plant.pid]
+        return run_wait_ns(pids), steal_jiffies()
+
+    def cpu_short(self, before, after):
+        """Why the machine was short of CPU for the rig between two samples, or None."""
+        self.short["polls"] += 1
+        cause = ("run_queue" if after[0] - before[0] >= RUN_WAIT_NS else
+                 "steal" if after[1] - before[1] >= STEAL_JIFFIES else None)
+        if cause:
+            self.short[cause] += 1
+        return cause
+
+    def rig_pids(self):
+        """The rig's process: under unshare, the shell's only child."""
+        kids = Path(f"/proc/{self.rig.proc.pid}/task/{self.rig.proc.pid}/children")
+        try:
+            return [int(p) for p in kids.read_text().split()] if self.private_disk else [self.rig.proc.pid]
+        except OSError:
+            return [self.rig.proc.pid]
 
     def starved(self, a, b):
         """The probe process woke late between soak times a and b."""
@@ -445,11 +500,8 @@ class Soak:
         rp.stop_process(self.probe)
         rp.stop_process(self.mbaps)
         if self.rig.proc.poll() is None:
-            # the rig inside unshare's shell: SIGTERM the rig itself (the shell's only child)
-            kids = Path(f"/proc/{self.rig.proc.pid}/task/{self.rig.proc.pid}/children")
-            pids = kids.read_text().split() if self.private_disk and kids.exists() else [str(self.rig.proc.pid)]
-            for pid in pids:
-                os.kill(int(pid), signal.SIGTERM)
+            for pid in self.rig_pids():  # the rig itself, not unshare's shell
+                os.kill(pid, signal.SIGTERM)
             try:
                 self.rig.proc.wait(20)
             except subprocess.TimeoutExpired:
@@ -492,8 +544,11 @@ class Soak:
         print(f"faults fired: {json.dumps(self.faults_fired)}")
         print(f"watchdog register after each module restart: {self.watchdog_after_restart} "
               f"(want {WATCHDOG_MS} each)")
-        print(f"log rows: {getattr(self, 'log_rows', 0)}; the machine short of CPU {len(self.probe_late)} times "
-              f"(a 5 ms sleep beside the rig woke > 8 ms late), {self.starved_ticks} missed ticks then (not counted)")
+        print(f"log rows: {getattr(self, 'log_rows', 0)}; the machine short of CPU: a 5 ms sleep beside the rig "
+              f"woke > 8 ms late {len(self.probe_late)} times; between two polls the rig or its module waited "
+              f">= {RUN_WAIT_NS / 1e6:g} ms on a run queue {self.short['run_queue']} times, else the hypervisor stole "
+              f">= {STEAL_JIFFIES * 10} ms {self.short['steal']} times, of {self.short['polls']}; "
+              f"{self.starved_ticks} missed ticks then (not counted)")
         for n in self.notes[:40]:
             print("  " + n)
         width = max(len(k) for k in self.counts)
