@@ -257,6 +257,40 @@ void plant_set_inputs(plant *pl, const plant_inputs *in)
         update_load(pl, in->load_n);
 }
 
+/* On an end stop the stop's reaction cancels whatever pushes the platform
+ * further into it: no acceleration into the stop, so the platform stays and
+ * the spring's volume with it. (A clamp after the step alone let the velocity
+ * grow again each step and kept the volume swept past the stop: the spring
+ * swelled on the stop at a rate set by the step size.) */
+static void pin_at_stops(const plant *pl, const double *x, double *dxdt)
+{
+    double y = x[PLANT_X_Y], vel = x[PLANT_X_VEL], acc = dxdt[PLANT_X_VEL];
+    if ((y >= pl->p.height_max_m && vel >= 0.0 && acc > 0.0) ||
+        (y <= pl->p.height_min_m && vel <= 0.0 && acc < 0.0))
+        dxdt[PLANT_X_VEL] = 0.0;
+}
+
+/* A step that carried the platform past a stop: the platform stops there, and
+ * the volume it swept beyond the stop is given back along the spring's
+ * polytrope P2 V2^(Z n) = const (the closed spring's law over that instant). */
+static void end_stops(const plant *pl, double *x)
+{
+    double y = x[PLANT_X_Y], stop;
+    if (y > pl->p.height_max_m)
+        stop = pl->p.height_max_m;
+    else if (y < pl->p.height_min_m)
+        stop = pl->p.height_min_m;
+    else
+        return;
+    double area = pl->area_cc1_m2 + pl->area_cc2_m2_per_m * 0.5 * (y + stop);
+    double v_old = x[PLANT_X_V2], v_new = v_old - area * (y - stop);
+    x[PLANT_X_P_SPRING] *= pow(v_old / v_new, pl->zn);
+    x[PLANT_X_V2] = v_new;
+    x[PLANT_X_Y] = stop;
+    if ((y > stop && x[PLANT_X_VEL] > 0.0) || (y < stop && x[PLANT_X_VEL] < 0.0))
+        x[PLANT_X_VEL] = 0.0;
+}
+
 void plant_rk4_step(plant *pl, double *x, int n, plant_rhs_fn rhs, const void *ctx, double h)
 {
     /* Damping follows the direction of motion at the start of the step; while
@@ -270,29 +304,23 @@ void plant_rk4_step(plant *pl, double *x, int n, plant_rhs_fn rhs, const void *c
     double k1[PLANT_RK4_MAX_NX], k2[PLANT_RK4_MAX_NX], k3[PLANT_RK4_MAX_NX], k4[PLANT_RK4_MAX_NX];
     double xt[PLANT_RK4_MAX_NX];
     rhs(ctx, x, k1);
+    pin_at_stops(pl, x, k1);
     for (int i = 0; i < n; i++)
         xt[i] = x[i] + 0.5 * h * k1[i];
     rhs(ctx, xt, k2);
+    pin_at_stops(pl, xt, k2);
     for (int i = 0; i < n; i++)
         xt[i] = x[i] + 0.5 * h * k2[i];
     rhs(ctx, xt, k3);
+    pin_at_stops(pl, xt, k3);
     for (int i = 0; i < n; i++)
         xt[i] = x[i] + h * k3[i];
     rhs(ctx, xt, k4);
+    pin_at_stops(pl, xt, k4);
     for (int i = 0; i < n; i++)
         x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
     pl->t_s += h;
-
-    /* End stops: the platform cannot pass them. */
-    if (x[PLANT_X_Y] < pl->p.height_min_m) {
-        x[PLANT_X_Y] = pl->p.height_min_m;
-        if (x[PLANT_X_VEL] < 0.0)
-            x[PLANT_X_VEL] = 0.0;
-    } else if (x[PLANT_X_Y] > pl->p.height_max_m) {
-        x[PLANT_X_Y] = pl->p.height_max_m;
-        if (x[PLANT_X_VEL] > 0.0)
-            x[PLANT_X_VEL] = 0.0;
-    }
+    end_stops(pl, x);
 }
 
 static void nominal_rhs(const void *ctx, const double *x, double *dxdt)

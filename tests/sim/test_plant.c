@@ -589,6 +589,41 @@ static void test_volume_at_height_follows_the_plant(void **state)
     assert_true(fabs(dv - ae * IN) < 1e-12);
 }
 
+/* A closed spring that lifts the platform onto its top stop and stays there
+ * for 20 s: the spring keeps the volume it has at the stop's height
+ * (plant_spring_volume_at) and its polytrope P2 V2^(Z n), and both steps used
+ * by the tools (the diagnosis's 5 ms, the truths' 2.5 ms) agree. A clamp after
+ * each step let the spring swell on the stop by a step-size dependent amount. */
+static void hold_on_top_stop(double h, double *v2, double *p2)
+{
+    plant pl;
+    plant_config cfg;
+    thesis_plant(&pl, &cfg);
+    pl.x[PLANT_X_P_SPRING] = 100.0 * PSI; /* well above the 900 lb upper line */
+    set(&pl, 0, 0, 0, 0, 900.0 * LBF);
+    double inv0 = pl.x[PLANT_X_P_SPRING] * pow(pl.x[PLANT_X_V2], pl.zn);
+    int steps = (int)(20.0 / h + 0.5);
+    for (int i = 0; i < steps; i++)
+        plant_step(&pl, h);
+    assert_true(pl.x[PLANT_X_Y] == cfg.plant.height_max_m);
+    double at_stop = plant_spring_volume_at(&cfg.plant, 900.0 * LBF, cfg.plant.height_max_m);
+    assert_true(fabs(pl.x[PLANT_X_V2] / at_stop - 1.0) < 1e-9);
+    double inv = pl.x[PLANT_X_P_SPRING] * pow(pl.x[PLANT_X_V2], pl.zn);
+    assert_true(fabs(inv / inv0 - 1.0) < 1e-7);
+    *v2 = pl.x[PLANT_X_V2];
+    *p2 = pl.x[PLANT_X_P_SPRING];
+}
+
+static void test_end_stop_holds_the_spring(void **state)
+{
+    (void)state;
+    double v5, p5, v25, p25;
+    hold_on_top_stop(0.005, &v5, &p5);
+    hold_on_top_stop(0.0025, &v25, &p25);
+    assert_true(fabs(v5 / v25 - 1.0) < 1e-9);
+    assert_true(fabs(p5 - p25) < 1.0); /* Pa, on about 700 kPa */
+}
+
 static void test_config_chatter_limit(void **state)
 {
     (void)state;
@@ -629,6 +664,7 @@ int main(void)
         cmocka_unit_test(test_accumulator_faster),
         cmocka_unit_test(test_config_chatter_limit),
         cmocka_unit_test(test_volume_at_height_follows_the_plant),
+        cmocka_unit_test(test_end_stop_holds_the_spring),
     };
     return cmocka_run_group_tests(tests, setup, teardown);
 }
