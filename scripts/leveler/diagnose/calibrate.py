@@ -294,10 +294,10 @@ def _grid_best(cal, u, j, xs, best, best_ss, seen):
 def grid_start(cal, u, j, ss_u):
     """u with parameter j at the best of a grid over its range (or where it is), the
     grid refined once around its best point (a step of 1/32 of the range). The closed
-    loop makes the residual rough in a single value: a 1 % larger pipe moves a valve's
-    switching by a tick and the residual up; the basin of a pipe 30 % larger is
-    about +-5 % wide. A local fit from the config's value stays on such a ridge; from
-    the grid's best it does not. ss_u: the residual's sum of squares at u (the caller has it)."""
+    loop can make the residual rough in a single value (a valve's switching moves by
+    whole ticks); a local fit from the config's value can stay on such a ridge, from
+    the grid's best it does not (test_calibrate's stand-in). ss_u: the residual's sum
+    of squares at u (the caller has it)."""
     seen = [float(u[j])]
     best, best_ss = _grid_best(cal, u, j, np.linspace(0.0, 1.0, GRID), np.array(u, dtype=float), ss_u, seen)
     step = 1.0 / (GRID - 1)
@@ -554,12 +554,14 @@ def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progres
 JOINT_NFEV = 20
 
 
-def joint_fit(cal, hold, chosen, effect, u_effect, start=None):
+def joint_fit(cal, hold, chosen, effect, u_effect, starts=(None,)):
     """An effect and the calibration's chosen values fitted together on the calibration
-    runs, from the effect's own fit and the config's values (or start's: an effect
-    fitted on the calibrated model starts from its values): a real effect keeps its
-    parameters and leaves the values near the config's; an effect standing in for a
-    mis-set value gives way to it. Returns {effect, params, u, calibration_gap, holdout_gap}."""
+    runs, from the effect's own fit and each of `starts` (vectors of values; None is the
+    config's), the best kept (fit._search): a real effect keeps its parameters and leaves
+    the values near the config's; an effect standing in for a mis-set value gives way to
+    it. From the calibration's values too, an effect fitted on the config as given is not
+    held in the valley its stand-in role made (a friction hidden under a mis-set
+    discharge coefficient). Returns {effect, params, u, calibration_gap, holdout_gap}."""
     d = len(effect.params)
     idx = list(chosen)
 
@@ -574,14 +576,15 @@ def joint_fit(cal, hold, chosen, effect, u_effect, start=None):
         r = p.residual_vector(effect.name, params)
         cal.nsim += p.nsim
         return np.concatenate([r, cal.space.prior(v)])
-    x0 = np.concatenate([np.asarray(u_effect, dtype=float),
-                         np.asarray(cal.space.u0 if start is None else start, dtype=float)[idx]])
-    res = least_squares(fun, x0, bounds=(np.zeros(len(x0)), np.ones(len(x0))), diff_step=0.02,
-                        x_scale=np.full(len(x0), 0.3), max_nfev=JOINT_NFEV, method="trf")
-    v, params = split(res.x)
+    cand = np.array([np.concatenate([np.asarray(u_effect, dtype=float),
+                                     np.asarray(cal.space.u0 if s is None else s, dtype=float)[idx]])
+                     for s in starts])
+    cand = np.unique(cand, axis=0)
+    x, _ = fit._search(fun, cand, JOINT_NFEV, len(cand), [float(np.sum(fun(c) ** 2)) for c in cand])
+    v, params = split(x)
     hp = hold.problem(v)
     out = {"effect": effect.name, "params": params, "u": v,
-           "calibration_gap": fit.cost_to_gap(res.fun[:-len(v)], len(cal.runs)),
+           "calibration_gap": fit.cost_to_gap(fun(x)[:-len(v)], len(cal.runs)),
            "holdout_gap": hp.gap(effect.name, params)}
     hold.nsim += hp.nsim
     return out

@@ -187,17 +187,18 @@ def _joint_step(handles, as_given, fits, gaps, progress):
         ranking.append(e)
     for r in sorted(as_given, key=lambda x: x["holdout_gap"])[:JOINT_CANDIDATES]:
         e = next(x for x in ranking if x["effect"] == r["effect"])
-        vectors[r["effect"]] = _joint(handles, e, fits[r["effect"]]["unit"], gaps, progress)
+        vectors[r["effect"]] = _joint(handles, e, fits[r["effect"]]["unit"], gaps, progress,
+                                      starts=(None, handles[2]))
     candidates.rank(ranking)
     return ranking, vectors
 
 
-def _joint(handles, e, unit, gaps, progress, start=None):
+def _joint(handles, e, unit, gaps, progress, starts):
     """Ranking entry e refitted together with the calibration's chosen values, from
-    its fit's unit vector and the values of `start` (the config's when None); e is
-    updated to the joint fit. Returns the joint fit's vector of values."""
+    its fit's unit vector and each of `starts` (vectors of values, None the config's);
+    e is updated to the joint fit. Returns the joint fit's vector of values."""
     cal, hold, u, chosen = handles
-    j = calibrate.joint_fit(cal, hold, chosen, fx.get(e["effect"]), unit, start)
+    j = calibrate.joint_fit(cal, hold, chosen, fx.get(e["effect"]), unit, starts)
     e.update(holdout_gap=j["holdout_gap"], calibration_gap=j["calibration_gap"], joint=True,
              shrink_pct=shrink(gaps[1], j["holdout_gap"]),
              params={k: dict(v, value=j["params"][k]) for k, v in e["params"].items()})
@@ -232,7 +233,7 @@ def on_calibrated_model(ask, ranking, vectors, handles, runs, gaps, noise):
     best = min(fresh.values(), key=lambda e: e["holdout_gap"])
     if best["holdout_gap"] < gaps[1]:
         vectors[best["effect"]] = _joint(handles, best, res[best["effect"]]["unit"], gaps, ask.progress,
-                                         start=handles[2])
+                                         starts=(handles[2],))
     out = [fresh.get(r["effect"], r) for r in ranking]
     candidates.rank(out)
     return out
