@@ -20,6 +20,7 @@ ACTUATORS = (("compressor_on", "comp", "compressor"), ("spring_valve_open", "spr
 LINE_HALF_SPAN_MM = 50.8     # the hysteresis lines are drawn 2 in either side of the target
 UNIT_SHOWN = {"um": (1e-3, "mm"), "Pa": (1e-3, "kPa")}
 LEARNT_SHADE = " style='background:#fff3d6'"
+PAGE_HZ = 2.0                # the page redraws at most this often (Page: what a redraw costs)
 
 
 def shown(regmap, name, value):
@@ -85,6 +86,12 @@ def hysteresis_figure(trail, up, down):
     return fig
 
 
+def set_text(div, text):
+    """div's text, sent to the browser only when it changed (each change costs a layout)."""
+    if div.text != text:
+        div.text = text
+
+
 class Page:
     """The document of one browser tab."""
 
@@ -103,7 +110,12 @@ class Page:
         self.controls = controls.Controls(regmap, link) if link is not None else None
         doc.title = "leveler-monitor"
         doc.add_root(self.layout())
-        doc.add_periodic_callback(self.update, max(50, int(1000 / rate_hz)))
+        # Every change to the document costs the browser a layout and a repaint of
+        # every plot (about 30 ms of a core in headless Chromium, whatever changed):
+        # at the poll rate the page took more than a core and starved a rig on the
+        # same machine. The page redraws at PAGE_HZ, each time with every sample
+        # polled since, and rewrites a text only when it changed.
+        doc.add_periodic_callback(self.update, int(1000 / min(rate_hz, PAGE_HZ)))
 
     def layout(self):
         head = Div(text="<h2>leveler-monitor</h2>", sizing_mode="stretch_width")
@@ -119,16 +131,17 @@ class Page:
         new = self.poller.since(self.seq)
         if not new:
             if self.poller.error:
-                self.now.text = f"<b>link: {html.escape(self.poller.error)}</b>"
+                set_text(self.now, f"<b>link: {html.escape(self.poller.error)}</b>")
             return
         self.seq = new[-1][0]
         rows = [trend_row(self.regmap, t, v) for _, t, v in new]
         self.trend.stream({c: [r[c] for r in rows] for c in TREND_COLUMNS}, rollover=self.rollover)
         self.trail.stream({"h": [r["h"] for r in rows], "p2": [r["p2"] for r in rows]}, rollover=self.rollover // 2)
         t, v = new[-1][1], new[-1][2]
-        self.now.text = (f"t = {t:.1f} s &nbsp; height <b>{rows[-1]['h']:.3f}</b> mm &nbsp; "
-                         f"P2 {rows[-1]['p2']:.1f} kPa &nbsp; state <b>{self.regmap.enum_name('control_state', v['control_state'])}</b>")
-        self.status.text = status_html(self.regmap, v, self.poller.error)
+        set_text(self.now, f"t = {t:.1f} s &nbsp; height <b>{rows[-1]['h']:.3f}</b> mm &nbsp; "
+                           f"P2 {rows[-1]['p2']:.1f} kPa &nbsp; state "
+                           f"<b>{self.regmap.enum_name('control_state', v['control_state'])}</b>")
+        set_text(self.status, status_html(self.regmap, v, self.poller.error))
         self.show_settings(v)
 
     def show_settings(self, v):
