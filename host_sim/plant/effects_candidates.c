@@ -260,6 +260,12 @@ static double line_hose_balance(const line_hose_stage *s, double ph, double *p1,
     return ph - ph0 - s->zrt * (s->e_v + s->a * *m_v - mass_f) / vh;
 }
 
+/* The balance is solved to LINE_HOSE_TOL_PA: with its slope >= 1 that puts
+ * the hose's pressure within 0.1 Pa, a millionth of it. Solving to 1e-3 Pa
+ * made each of line_delay's simulations about 10 % dearer, for the same fit
+ * and verdicts (docs/diagnosis.md, Speed). */
+#define LINE_HOSE_TOL_PA 0.1
+
 /* The root of the stage's balance, from a guess ph_guess and the balance's
  * slope there (<= 0: probed 1 Pa toward the root; the slope is >= 1): Newton
  * steps until the root is bracketed, then regula falsi with the Illinois
@@ -269,7 +275,7 @@ static double line_hose_solve(const line_hose_stage *s, double ph_guess, double 
                               double *m_f)
 {
     double a = ph_guess, g_a = line_hose_balance(s, a, p1, m_v, m_f);
-    if (fabs(g_a) < 1e-3)
+    if (fabs(g_a) < LINE_HOSE_TOL_PA)
         return a;
     double k = *slope;
     if (!(k >= 1.0)) {
@@ -285,7 +291,7 @@ static double line_hose_solve(const line_hose_stage *s, double ph_guess, double 
     }
     double lo = fmin(a, b), hi = fmax(a, b), f_lo = a < b ? g_a : g_b, f_hi = a < b ? g_b : g_a;
     double g_lo = f_lo, g_hi = f_hi, ph = b, g = g_b;
-    for (int it = 0, side = 0; it < 60 && hi - lo > 1.0 && fabs(g) > 1e-3; it++) {
+    for (int it = 0, side = 0; it < 60 && hi - lo > 1.0 && fabs(g) > LINE_HOSE_TOL_PA; it++) {
         ph = lo - g_lo * (hi - lo) / (g_hi - g_lo);
         if (!(ph > lo && ph < hi))
             ph = 0.5 * (lo + hi);
@@ -301,7 +307,7 @@ static double line_hose_solve(const line_hose_stage *s, double ph_guess, double 
         }
     }
     *slope = hi > lo && f_hi > f_lo ? (f_hi - f_lo) / (hi - lo) : k;
-    if (fabs(g) > 1e-3 && f_hi > f_lo) {
+    if (fabs(g) > LINE_HOSE_TOL_PA && f_hi > f_lo) {
         ph = lo - f_lo * (hi - lo) / (f_hi - f_lo);
         line_hose_balance(s, ph, p1, m_v, m_f);
     }
