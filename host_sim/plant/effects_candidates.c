@@ -261,7 +261,7 @@ static double line_hose_balance(const line_hose_stage *s, double ph, double *p1,
 }
 
 /* The balance is solved to LINE_HOSE_TOL_PA: with its slope >= 1 that puts
- * the hose's pressure within 0.1 Pa, a millionth of it. Solving to 1e-3 Pa
+ * the hose's pressure within 0.1 Pa, under a millionth of it. Solving to 1e-3 Pa
  * made each of line_delay's simulations about 10 % dearer, for the same fit
  * and verdicts (docs/diagnosis.md, Speed). */
 #define LINE_HOSE_TOL_PA 0.1
