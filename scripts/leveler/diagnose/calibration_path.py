@@ -176,7 +176,7 @@ def set_aside(calibration, effect, g_fx, why, progress):
              f"{calibration['holdout_gap']['after']:.3f}: {why}")
 
 
-def _joint_step(handles, as_given, fits, gaps, progress):
+def _joint_step(handles, as_given, fits, gaps, progress, resolution_s):
     """The best effects alone, refitted together with the calibration's chosen values
     (calibrate.joint_fit), scored against the calibrated model's held-out gap; the
     other candidates keep their scores alone (on_calibrated_model replaces them).
@@ -189,7 +189,7 @@ def _joint_step(handles, as_given, fits, gaps, progress):
         e = next(x for x in ranking if x["effect"] == r["effect"])
         vectors[r["effect"]] = _joint(handles, e, fits[r["effect"]]["unit"], gaps, progress,
                                       starts=(None, handles[2]))
-    candidates.rank(ranking)
+    candidates.rank(ranking, resolution_s)
     return ranking, vectors
 
 
@@ -235,7 +235,7 @@ def on_calibrated_model(ask, ranking, vectors, handles, runs, gaps, noise):
         vectors[best["effect"]] = _joint(handles, best, res[best["effect"]]["unit"], gaps, ask.progress,
                                          starts=(handles[2],))
     out = [fresh.get(r["effect"], r) for r in ranking]
-    candidates.rank(out)
+    candidates.rank(out, ask.resolution_s)
     return out
 
 
@@ -245,7 +245,7 @@ def calibrated_basis(ask, evidence, calibration, handles, runs, basis):
     the threshold and what is left unexplained are measured against it."""
     calib, holdout = runs
     gaps = (calibration["calibration_gap"]["after"], calibration["holdout_gap"]["after"])
-    ranking, vectors = _joint_step(handles, basis.ranking, basis.fits, gaps, ask.progress)
+    ranking, vectors = _joint_step(handles, basis.ranking, basis.fits, gaps, ask.progress, ask.resolution_s)
     ranking = on_calibrated_model(ask, ranking, vectors, handles, runs, gaps, evidence.noise_gap(holdout))
     u_top = vectors.get(ranking[0]["effect"], handles[2])
     work = handles[0].config(u_top)

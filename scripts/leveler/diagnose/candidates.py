@@ -32,9 +32,17 @@ def scored(candidates, fits, nominal_cal_gap, nominal_hold_gap):
     return ranking
 
 
-def rank(ranking):
-    """Sorts by held-out shrink, best first, and numbers the places."""
-    ranking.sort(key=lambda x: -x["shrink_pct"])
+def rank(ranking, resolution_s=0.0):
+    """Sorts by held-out shrink, best first, and numbers the places. An effect whose
+    fitted strokes all last less than the logs' sample interval resolution_s
+    (effects.Effect.resolved) is marked `under_resolution` and ranked after those
+    the logs resolve: it cannot be told from the logs' own switch timing."""
+    for r in ranking:
+        if not fx.get(r["effect"]).resolved(values_of(r), resolution_s):
+            r["under_resolution"] = True
+        else:
+            r.pop("under_resolution", None)
+    ranking.sort(key=lambda x: (x.get("under_resolution", False), -x["shrink_pct"]))
     for i, r in enumerate(ranking, 1):
         r["rank"] = i
 
@@ -58,7 +66,7 @@ def effects_step(ask, evidence, calib, holdout, hold_problem, gaps):
                        ask.fit_opts)
     ranking = scored(ask.candidates, fits, nominal_cal_gap, nominal_hold_gap)
     evidence.signatures(holdout, hold_problem, ranking)
-    rank(ranking)
+    rank(ranking, ask.resolution_s)
     return ranking, fits
 
 

@@ -18,6 +18,7 @@ class Ask:
     progress: Callable
     fit_opts: Optional[dict]
     design_pair: Optional[list]
+    resolution_s: float = 0.0  # the logs' finest median sample interval (runs.sample_interval)
 
 
 @dataclass

@@ -40,6 +40,9 @@ class Effect:
     effect_id: int      # effects.json id: what the C plant is called with
     params: tuple
     doc: str
+    # sums of parameters that a log must resolve (effects.json "strokes"): a valve's delay
+    # plus its lag, the time a stroke takes to be seen
+    strokes: tuple = ()
 
     @property
     def names(self):
@@ -47,6 +50,27 @@ class Effect:
 
     def nominal(self):
         return {p.name: p.nominal for p in self.params}
+
+    def resolved(self, values, interval_s):
+        """Whether logs sampled every interval_s (s) resolve the fitted values: one of
+        the strokes lasts at least one sample. A replayed log puts each switch anywhere
+        within its sample, so a stroke shorter than that is the log's own timing, not
+        evidence. Effects without strokes, and evidence without samples (interval 0),
+        always are."""
+        if not self.strokes or not interval_s > 0.0:
+            return True
+        return max(sum(values[n] for n in s) for s in self.strokes) >= interval_s
+
+
+def _strokes(path, e):
+    """An effect's "strokes": lists of its parameter names, checked."""
+    out = tuple(tuple(s) for s in e.get("strokes", ()))
+    names = {p["name"] for p in e["params"]}
+    for s in out:
+        if not s or not set(s) <= names:
+            raise ValueError(f"{path}: effect {e['name']}: strokes: {list(s)} must name its parameters "
+                             f"({', '.join(sorted(names))})")
+    return out
 
 
 def load(path=CATALOGUE):
@@ -57,7 +81,7 @@ def load(path=CATALOGUE):
                         tuple(Param(p["name"], p["fit"][0], p["fit"][1], p["nominal"], p.get("log", False),
                                     p.get("doc", ""), p.get("extends", False), p.get("knee", 0.0))
                               for p in e["params"]),
-                        e["doc"])
+                        e["doc"], _strokes(path, e))
                  for e in doc["effects"])
 
 

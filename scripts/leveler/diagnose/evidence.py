@@ -50,6 +50,10 @@ class Evidence:
         """The gap a perfect model would leave: the evidence's own noise."""
         return 0.0
 
+    def resolution_s(self, runs):
+        """The shortest time the evidence resolves (s); 0: no limit it knows of."""
+        return 0.0
+
     def unexplained(self, hold_problem, holdout, ranking, kept, cal_gap, noise, threshold, progress):
         """What no candidate explains (confidence.unexplained), or None."""
         return None

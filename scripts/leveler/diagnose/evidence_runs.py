@@ -7,6 +7,7 @@ from . import confidence
 from . import fit
 from . import gap
 from . import phases as ph
+from . import runs as runs_mod
 from .evidence import THRESHOLD_PCT, Evidence, sensitivity_floor
 
 # Traces: a named effect must beat the floor by this many points.
@@ -131,6 +132,9 @@ class RunLogs(Evidence):
 
     def noise_gap(self, holdout):
         return fit.noise_gap(holdout)
+
+    def resolution_s(self, runs):
+        return runs_mod.sample_interval(runs)
 
     unexplained = staticmethod(unexplained)
     before_after = staticmethod(before_after)

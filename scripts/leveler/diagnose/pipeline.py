@@ -30,8 +30,9 @@ def evidence_of(runs):
 def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jobs=None,
              progress=print, fit_opts=None, design_pair=None):
     """Returns (result dict for diagnosis.json, traces for the report)."""
-    ask = Ask(spec, sim, config, mode, candidates or fx.NAMES, jobs, progress, fit_opts, design_pair)
     evidence = evidence_of(list(calib) + list(holdout))
+    ask = Ask(spec, sim, config, mode, candidates or fx.NAMES, jobs, progress, fit_opts, design_pair,
+              evidence.resolution_s(list(calib) + list(holdout)))
     with tempfile.TemporaryDirectory(prefix="leveler-calibration-") as folder:
         return _diagnose(ask, evidence, calib, holdout, folder)
 
@@ -106,6 +107,7 @@ def _verdict(ask, evidence, basis, noise, gate):
     """Whether the leader, or a pair on top of it, is named: it must clear the
     threshold and the noise gate, and leave nothing unexplained."""
     best = basis.ranking[0]
+    _unresolved(ask, basis)
     ask.progress(f"      sensitivity floor of the held-out {evidence.noun}: {basis.floor:.1f}% "
                  f"(threshold {basis.threshold:.1f}%)")
     named_single = best["shrink_pct"] >= basis.threshold and basis.gaps[1] - best["holdout_gap"] >= gate
@@ -122,6 +124,16 @@ def _verdict(ask, evidence, basis, noise, gate):
     winner = lead if named else ("not explained" if finding else "none")
     effects = kept["effects"] if kept and named else ([winner] if named else [])
     return Verdict(named, named_single, pair_list, kept, second, finding, winner, effects)
+
+
+def _unresolved(ask, basis):
+    """Says which candidates would reach the threshold but are under the logs'
+    resolution (candidates.rank ranked them last)."""
+    for r in basis.ranking:
+        if r.get("under_resolution") and r["shrink_pct"] >= basis.threshold:
+            ask.progress(f"      {r['effect']} ({r['shrink_pct']:.1f}%) is under the logs' resolution: its fitted "
+                         f"strokes all last less than one sample ({1e3 * ask.resolution_s:.0f} ms), which a "
+                         f"log's own switch timing explains; ranked after the candidates the logs resolve")
 
 
 def _effects_after_all(ask, evidence, calibration, basis, verdict, given, noise, gate):

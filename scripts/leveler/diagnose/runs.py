@@ -49,6 +49,13 @@ class Run:
         return a is not None and bool(np.isfinite(a).mean() > 0.5)
 
 
+def sample_interval(runs):
+    """The finest of the runs' median sample intervals (s): the shortest time the logs
+    resolve. 0 for evidence without time-stamped samples (published figures)."""
+    out = [float(np.median(np.diff(r.t_s))) for r in runs if getattr(r, "t_s", None) is not None and len(r.t_s) > 1]
+    return min(out) if out else 0.0
+
+
 def load_run(path):
     """Read and check one run log. Raises DiagnoseInputError naming file:line: field."""
     try:
