@@ -30,9 +30,10 @@ def evidence_of(runs):
 def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jobs=None,
              progress=print, fit_opts=None, design_pair=None):
     """Returns (result dict for diagnosis.json, traces for the report)."""
-    evidence = evidence_of(list(calib) + list(holdout))
+    given = list(calib) + list(holdout)
+    evidence = evidence_of(given)
     ask = Ask(spec, sim, config, mode, candidates or fx.NAMES, jobs, progress, fit_opts, design_pair,
-              evidence.resolution_s(list(calib) + list(holdout)))
+              evidence.resolution_s(given))
     with tempfile.TemporaryDirectory(prefix="leveler-calibration-") as folder:
         return _diagnose(ask, evidence, calib, holdout, folder)
 
