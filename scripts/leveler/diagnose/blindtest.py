@@ -126,16 +126,18 @@ APART = ("offform", "unknown", "misset")    # written apart from the candidates:
 def family_specs(family):
     """The cases of a family other than `present`: dicts with family, form, truth (the
     effect the answer should be: a catalogue effect, "unknown" or "none") and, for a
-    form, its truth2 id; for a misset rig the parameter and the config change."""
+    form, its truth2 id; for a misset rig the parameter and the config change; and
+    its slot (the seed's stream of random numbers and its system and log kind)."""
     if family in ("offform", "unknown"):
-        return [{"family": family, "form": n, "truth": e["effect"], "form_id": e["id"]}
-                for n, e in FORMS.items() if e["family"] == family]
-    misset = [{"family": "misset", "form": n, "truth": "none", "param": par, "keys": keys, "change": ch}
-              for n, par, keys, ch in MISSET]
+        specs = [{"family": family, "form": n, "truth": e["effect"], "form_id": e["id"]}
+                 for n, e in FORMS.items() if e["family"] == family]
+    else:
+        specs = [{"family": "misset", "form": n, "truth": "none", "param": par, "keys": keys, "change": ch}
+                 for n, par, keys, ch in MISSET]
     if family == "combo":
-        by_name = {m["form"]: m for m in misset}
-        return [dict(by_name[m], family="combo", form=f"{e}@{m}", truth=e, form_id=None) for e, m in COMBO]
-    return misset
+        by_name = {m["form"]: m for m in specs}
+        specs = [dict(by_name[m], family="combo", form=f"{e}@{m}", truth=e, form_id=None) for e, m in COMBO]
+    return [dict(sp, slot=100 * FAMILIES.index(family) + i) for i, sp in enumerate(specs)]
 
 
 def form_params(form, rng):
@@ -409,16 +411,16 @@ def param_named(names, param):
     return any(all(w in n.lower() for w in words) for n in names)
 
 
-def run_form_case(sim, top, seed, spec, index, extra, force=(None, None, "step", None)):
-    """One case of another family (family_specs): a form of the second truth family,
-    a mis-set rig with no effect, or one with a first-family effect (combo)."""
+def form_logs(sim, folder, seed, spec, force=(None, None, "step", None)):
+    """A case of another family: its rig (folder/rig.ini) and its logs cal1, cal2
+    and hold in folder/logs. Returns (spec with its form_id, system, log kind, truth
+    parameters, effect)."""
     combo = spec["family"] == "combo"
     spec = dict(spec, form_id=None if combo else spec.get("form_id", 0))
     system, kind = case_kind(seed, spec["slot"])
     if spec["family"] in ("misset", "combo"):
         system = "900lb"    # rigs that differ from thesis-900lb in one parameter (issue 21)
     system, kind = force[0] or system, force[1] or kind
-    folder = os.path.join(top, f"{spec['family']}-seed{seed}-{index:02d}")
     logs = os.path.join(folder, "logs")
     os.makedirs(logs, exist_ok=True)
     rng = np.random.default_rng(seed * 1000 + spec["slot"])
@@ -428,6 +430,15 @@ def run_form_case(sim, top, seed, spec, index, extra, force=(None, None, "step",
     for name, steps, end in schedules(rng, system, force[2]):
         write_truth_log(sim, os.path.join(logs, f"{name}.csv"), rig, system, steps, end, effect, params, kind,
                         rng, form_id=spec["form_id"])
+    return spec, system, kind, params, effect
+
+
+def run_form_case(sim, top, seed, spec, index, extra, force=(None, None, "step", None)):
+    """One case of another family (family_specs): a form of the second truth family,
+    a mis-set rig with no effect, or one with a first-family effect (combo)."""
+    folder = os.path.join(top, f"{spec['family']}-seed{seed}-{index:02d}")
+    logs = os.path.join(folder, "logs")
+    spec, system, kind, params, effect = form_logs(sim, folder, seed, spec, force)
     with open(os.path.join(folder, "label.sealed.json"), "w") as fh:
         json.dump({k: v for k, v in spec.items()} | {"truth_params": params, "seed": seed, "system": system,
                                                       "log": kind}, fh)
@@ -725,10 +736,7 @@ def main_families(a):
     force = (a.system, a.log, a.shape, a.algorithm)
     chosen = []
     for fam in [f for f in fams if f != "present"]:
-        specs = family_specs(fam)
-        for i, sp in enumerate(specs):
-            sp["slot"] = 100 * (FAMILIES.index(fam)) + i
-        chosen += [sp for sp in specs if forms is None or sp["form"] in forms]
+        chosen += [sp for sp in family_specs(fam) if forms is None or sp["form"] in forms]
     extra = blindtest_run.diagnosis_extra(a, ["--fast"] if a.fast else [], a.seeds * len(chosen))
     jobs = []
     for fam in [f for f in fams if f != "present"]:
