@@ -12,7 +12,8 @@ in 20. Below "sure", the set the logs cannot separate, why, and the experiment
 `unsure` with "not explained" in its set (pinned).
 
 "Not explained by any candidate": the calibrated model leaves a gap well above
-the noise, and the best candidate closes less than half of it, or less than two
+the noise, and the best candidate closes less than half of it while what it
+leaves is still above the noise (three noise gaps, as for the gap), or less than two
 thirds while what it leaves is still far above the noise (a part of the gap is a
 look-alike's, the rest is not), or it closes the gap in some phases by making
 others worse (a stand-in bent to fit, not the cause). The verdict then names no
@@ -85,10 +86,12 @@ def unexplained(ranking, cal_gap, noise, per_phase, threshold):
     left = cal_gap * (1.0 - best["shrink_pct"] / 100.0) / noise
     partly = best["shrink_pct"] < PARTLY_PCT and left > LEFT_NOISE
     share, worse = worsened(best, per_phase)
-    if not (best["shrink_pct"] < EXPLAINS_PCT or partly or share > WORSENS_SHARE):
+    # under half, but what is left within the noise: all that is above it is explained
+    under_half = best["shrink_pct"] < EXPLAINS_PCT and left > UNEXPLAINED_NOISE
+    if not (under_half or partly or share > WORSENS_SHARE):
         return None
     where = sorted(per_phase.items(), key=lambda kv: -kv[1]["before"])[:3]
-    short = (f"less than {EXPLAINS_PCT:.0f}%" if best["shrink_pct"] < EXPLAINS_PCT else
+    short = (f"less than {EXPLAINS_PCT:.0f}%" if under_half else
              f"less than two thirds, and leaves {left:.1f} times the noise" if partly else
              f"by making {', '.join(worse)} worse: {100 * share:.0f}% of the residual added where it fits worse")
     return {"gap": cal_gap, "noise_gap": noise, "times_noise": cal_gap / noise, "worsened_share": share,
