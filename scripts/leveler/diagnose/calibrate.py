@@ -434,7 +434,8 @@ def held_out_first(cal, hold, singles, chosen, alike, after, max_nfev, jobs, pro
     cannot tell apart are told apart by the held-out runs (and by an experiment
     among them), as effects are (a pipe 30 % larger fits the steps as well as a
     lower polytropic exponent; the compressor against the shut valve says which).
-    Returns (u, chosen) of the better of the two on the held-out runs, or None."""
+    Returns (u, chosen, held-out gap) of the other when it is the better on the
+    held-out runs, else None."""
     better = [a for a in alike if a["holdout_gap"] < a["first_holdout_gap"]]
     if not better:
         return None
@@ -446,7 +447,7 @@ def held_out_first(cal, hold, singles, chosen, alike, after, max_nfev, jobs, pro
     g2 = hold.gap(u2)
     progress(f"      from {a['name']}: held-out gap {g2:.3f} against {after:.3f}, "
              + ("taken" if g2 < after else "the first calibration stands"))
-    return (u2, chosen2) if g2 < after else None
+    return (u2, chosen2, g2) if g2 < after else None
 
 
 def _sd(cal, u, chosen):
@@ -529,19 +530,16 @@ def calibrate(sim, config_file, calib, holdout, mode, folder, threshold, progres
     hold = Calibrated(sim, space, holdout, mode, folder, fit.start_shifts(holdout), effect=effect)
     progress(f"      fitting {len(space.params)} nominal parameters of {space.name} on {len(calib)} run(s)")
     u, chosen, singles = fit_calibration(cal, max_nfev, progress, jobs)
-    before_cal, after_cal = cal.gap(space.u0), cal.gap(u)
     before, after = hold.gap(space.u0), hold.gap(u)
-    shrink = shrink_pct(before, after)
-    gate = fit.NOISE_GAIN * fit.noise_gap(holdout)
-    accepted = shrink >= threshold and before - after >= gate
     alike = alike_values(cal, hold, singles, chosen[0], ALIKE_SHARE) if chosen else []
     other = held_out_first(cal, hold, singles, chosen, alike, after, max_nfev, jobs, progress) if alike else None
     if other is not None:
-        u, chosen = other
-        after_cal, after = cal.gap(u), hold.gap(u)
-        shrink = shrink_pct(before, after)
-        accepted = shrink >= threshold and before - after >= gate
+        u, chosen, after = other
         alike = alike_values(cal, hold, singles, chosen[0], ALIKE_SHARE)
+    before_cal, after_cal = cal.gap(space.u0), cal.gap(u)
+    shrink = shrink_pct(before, after)
+    gate = fit.NOISE_GAIN * fit.noise_gap(holdout)
+    accepted = shrink >= threshold and before - after >= gate
     alike = alike if accepted else []
     table = parameter_table(cal, u, chosen, accepted, carries_gain(hold, u, chosen, before, after) if accepted else {})
     moved = [p for p in table if p["moved"]]
