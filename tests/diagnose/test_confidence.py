@@ -38,6 +38,48 @@ def test_under_half_that_leaves_only_the_noise_is_explained():
     assert finding(22.4, 3.4) is None
 
 
+# unknown_stiffness seed 9 (900 lb, 100 Hz; outside the catalogue): friction closes 79.7 %
+# of the held-out gap, settling the climb and the settle by sinking too far in the drop
+STIFF_BEFORE = {"steady": 0.16, "drop": 0.90, "stuck_low": 4.71, "climb": 15.85, "settle": 15.88, "jump": 17.21,
+                "stuck_high": 9.52, "return": 4.07}
+STIFF_FRICTION = {"steady": 0.7, "drop": -720.6, "stuck_low": -172.8, "climb": 57.5, "settle": 96.0, "jump": 83.9,
+                  "stuck_high": 50.5, "return": 34.2}
+# valve_dynamics seed 4 (present, 1000 lb, 100 Hz; named right): worse in the drop and the jump
+VALVE_BEFORE = {"steady": 0.16, "drop": 0.19, "stuck_low": 0.26, "climb": 0.23, "settle": 14.05, "jump": 0.65,
+                "stuck_high": 2.12, "return": 8.87}
+VALVE_FIT = {"steady": 27.5, "drop": -328.1, "stuck_low": 49.1, "climb": 50.5, "settle": 83.2, "jump": -420.6,
+             "stuck_high": -0.0, "return": 76.3}
+
+
+def _signed(effect, shrink_pct, before, per_phase_shrink):
+    """A ranking entry as evidence_runs.signatures leaves it: the share measured on the
+    model the candidate was fitted on."""
+    lead = {"effect": effect, "shrink_pct": shrink_pct, "per_phase_shrink_pct": per_phase_shrink}
+    lead["worsened_share"], lead["worsened_phases"] = confidence.worsened(
+        lead, {p: {"before": v} for p, v in before.items()})
+    return lead
+
+
+def test_a_candidate_that_fits_by_making_phases_worse_does_not_explain():
+    phases = {p: {"before": v} for p, v in STIFF_BEFORE.items()}
+    lead = _signed("friction", 79.7, STIFF_BEFORE, STIFF_FRICTION)
+    added = 0.90 * 7.206 + 4.71 * 1.728      # what friction adds in the drop and stuck low
+    assert abs(lead["worsened_share"] - added / sum(STIFF_BEFORE.values())) < 1e-9
+    assert lead["worsened_phases"] == ["stuck_low", "drop"]
+    f = confidence.unexplained([lead], 14.7 / 0.116, 1.0, phases, 15.0)
+    assert f is not None and f["nearest"] == "friction" and "worse" in f["why"]
+    # the same entry without the share (scored on another model than it was measured on) explains
+    moved = {k: v for k, v in lead.items() if not k.startswith("worsened")}
+    assert confidence.unexplained([moved], 14.7 / 0.116, 1.0, phases, 15.0) is None
+
+
+def test_a_right_answer_worse_in_a_small_phase_still_explains():
+    phases = {p: {"before": v} for p, v in VALVE_BEFORE.items()}
+    lead = _signed("valve_dynamics", 80.0, VALVE_BEFORE, VALVE_FIT)
+    assert 0.1 < lead["worsened_share"] < confidence.WORSENS_SHARE
+    assert confidence.unexplained([lead], 5.5 / 0.116, 1.0, phases, 15.0) is None
+
+
 def test_a_weak_effect_closed_to_the_noise_is_explained():
     # present area truths: 38.9 % and 58.9 % closed, about one noise gap left
     assert finding(58.9, 1.19 / (1 - 0.589)) is None

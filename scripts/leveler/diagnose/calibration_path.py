@@ -184,6 +184,9 @@ def _joint_step(handles, as_given, fits, gaps, progress, resolution_s):
     ranking, vectors = [], {}
     for r in as_given:
         e = dict(r, shrink_pct=shrink(gaps[1], r["holdout_gap"]), joint=False)
+        # what a candidate made worse was measured on the config as given, not on this model
+        e.pop("worsened_share", None)
+        e.pop("worsened_phases", None)
         ranking.append(e)
     for r in sorted(as_given, key=lambda x: x["holdout_gap"])[:JOINT_CANDIDATES]:
         e = next(x for x in ranking if x["effect"] == r["effect"])

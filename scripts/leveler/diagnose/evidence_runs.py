@@ -78,9 +78,12 @@ def _phase_energy(runs, traces, labels):
 def signatures(runs, problem, nominal, ranking):
     """Residual signature of each fitted candidate against the phase table (held-out):
     per-phase shrink, and how well the phases it fixes match where the gap lies
-    (cosine of the nominal per-phase energy and the candidate's per-phase reduction)."""
+    (cosine of the nominal per-phase energy and the candidate's per-phase reduction),
+    and the share of the nominal's residual it adds where it fits worse (confidence.worsened)."""
     labels = [_labels(r) for r in runs]
     e_nom = _phase_energy(runs, nominal, labels)
+    before = {p: {"before": gap.gap_over_runs(runs, nominal, [lab == p for lab in labels])["normalised"]}
+              for p in ph.PHASES if any((lab == p).any() for lab in labels)}
     phases = [p for p in ph.PHASES if e_nom.get(p, 0.0) > 0.0]
     v_nom = np.array([e_nom[p] for p in phases])
     for entry in ranking:
@@ -91,6 +94,7 @@ def signatures(runs, problem, nominal, ranking):
         red = np.array([e_nom[p] - e_aug.get(p, 0.0) for p in phases])
         den = np.linalg.norm(v_nom) * np.linalg.norm(red)
         entry["signature_match"] = float(v_nom @ red / den) if den > 0 else 0.0
+        entry["worsened_share"], entry["worsened_phases"] = confidence.worsened(entry, before)
 
 
 def unexplained(hold_problem, holdout, ranking, kept, cal_gap, noise, threshold, progress):
