@@ -39,20 +39,25 @@ def where_table(problem, runs):
     return {"ranked": gap.rank_places(tables), "runs": per_run}, traces
 
 
+def phase_gaps(runs, traces, labels):
+    """Per phase the runs pass through: the gap of the traces over those samples (gap.gap_over_runs)."""
+    out = {}
+    for p in ph.PHASES:
+        masks = [lab == p for lab in labels]
+        if any(m.any() for m in masks):
+            out[p] = gap.gap_over_runs(runs, traces, masks)
+    return out
+
+
 def before_after(problem, runs, nominal, augmented):
     """Held-out gaps overall and per phase, nominal vs augmented, and the shrink."""
     labels = [_labels(r) for r in runs]
     out = {"overall": {"before": gap.gap_over_runs(runs, nominal),
                        "after": gap.gap_over_runs(runs, augmented)}}
-    per_phase = {}
-    for p in ph.PHASES:
-        masks = [lab == p for lab in labels]
-        if not any(m.any() for m in masks):
-            continue
-        b = gap.gap_over_runs(runs, nominal, masks)
-        a = gap.gap_over_runs(runs, augmented, masks)
-        per_phase[p] = {"before": b, "after": a, "shrink_pct": gap.shrink(b["normalised"], a["normalised"])}
-    out["per_phase"] = per_phase
+    b_all, a_all = phase_gaps(runs, nominal, labels), phase_gaps(runs, augmented, labels)
+    out["per_phase"] = {p: {"before": b, "after": a_all[p], "shrink_pct": gap.shrink(b["normalised"],
+                                                                                     a_all[p]["normalised"])}
+                        for p, b in b_all.items()}
     ev = []
     for r, n, a in zip(runs, nominal, augmented):
         band = gap.band_of(problem.config_of(r))
@@ -82,8 +87,7 @@ def signatures(runs, problem, nominal, ranking):
     and the share of the nominal's residual it adds where it fits worse (confidence.worsened)."""
     labels = [_labels(r) for r in runs]
     e_nom = _phase_energy(runs, nominal, labels)
-    before = {p: {"before": gap.gap_over_runs(runs, nominal, [lab == p for lab in labels])["normalised"]}
-              for p in ph.PHASES if any((lab == p).any() for lab in labels)}
+    before = {p: {"before": g["normalised"]} for p, g in phase_gaps(runs, nominal, labels).items()}
     phases = [p for p in ph.PHASES if e_nom.get(p, 0.0) > 0.0]
     v_nom = np.array([e_nom[p] for p in phases])
     for entry in ranking:
@@ -104,8 +108,8 @@ def unexplained(hold_problem, holdout, ranking, kept, cal_gap, noise, threshold,
     if kept and kept["shrink_pct"] > lead["shrink_pct"]:
         lead = {"effect": kept["effect"], "shrink_pct": kept["shrink_pct"]}
     cal_nominal = [hold_problem.best_start(r, None, {})[0] for r in holdout]
-    per_phase = before_after(hold_problem, holdout, cal_nominal, cal_nominal)["per_phase"]
-    per_phase = {p: {"before": v["before"]["normalised"]} for p, v in per_phase.items()}
+    per_phase = {p: {"before": g["normalised"]}
+                 for p, g in phase_gaps(holdout, cal_nominal, [_labels(r) for r in holdout]).items()}
     finding = confidence.unexplained([lead], cal_gap, noise, per_phase, threshold)
     if finding:
         progress(f"      not explained by any candidate: {finding['why']}; the residual lies in "
