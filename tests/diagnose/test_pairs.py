@@ -139,3 +139,29 @@ def test_a_leader_named_alone_over_a_pair_not_told_apart_stands_on_the_pairs_gap
     assert v.explains(ranking)["holdout_gap"] == 0.612 < 1.163
     assert v.top(ranking)["effect"] == "friction"                        # named alone
     assert Verdict(False, False, entries, None, None, None, "none", []).explains(ranking) is None
+
+
+def test_the_calibration_named_with_the_same_effect_is_judged_against_its_fit_alone():
+    # combo friction@spring_valve_cd-25% (the spring valve's Cd 25 % low, friction): the calibrated
+    # model (Cd -24 %, damping down +28 %) with friction leaves 0.590; on the config as given friction
+    # alone 2.345, friction + line_delay 0.385, not told apart from friction + thermal 0.952. Both name
+    # friction alone: the calibration's values stand against friction's own fit, not the unnamed pair
+    from types import SimpleNamespace
+    from leveler.diagnose.context import Verdict
+    from leveler.diagnose.pipeline import _alt_gap
+    by, entries = measured(11.879, {"friction": 2.345, "sensor_lag": 4.528, "thermal": 6.910, "line_delay": 8.315},
+                           {"friction+line_delay": (0.385, False), "friction+thermal": (0.952, False)})
+    ranking = sorted(by.values(), key=lambda r: r["holdout_gap"])
+    assert pairs.judge(entries, by, 15.0, others=entries) is None
+    alt = Verdict(True, True, entries, None, None, None, "friction", ["friction"])
+    said = []
+    ask = SimpleNamespace(progress=said.append)
+    on_calibrated = Verdict(True, True, [], None, None, None, "friction", ["friction"])
+    assert _alt_gap(ask, on_calibrated, alt, ranking)["holdout_gap"] == 2.345 > 0.590
+    assert "not named" in said[0]
+    # a calibrated model that names nothing is still judged against what the pair explains
+    nothing = Verdict(False, False, [], None, None, {"where": "return"}, "not explained", [])
+    assert _alt_gap(ask, nothing, alt, ranking)["holdout_gap"] == 0.385
+    # another effect named on the calibrated model: the pair's gap, as before
+    other = Verdict(True, True, [], None, None, None, "thermal", ["thermal"])
+    assert _alt_gap(ask, other, alt, ranking)["holdout_gap"] == 0.385

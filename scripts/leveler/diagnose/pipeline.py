@@ -145,13 +145,15 @@ def _effects_after_all(ask, evidence, calibration, basis, verdict, given, noise,
     effects on the config as given, a pair included, are judged as if there had been
     no calibration; when they are named and leave a smaller held-out gap than the
     calibrated model (with its named effect) did, they stand and the calibration is
-    set aside. Returns the (basis, verdict) that stand."""
+    set aside. When both name the same single effect, the config as given stands on
+    that effect's own gap, not on a pair whose second it cannot name (_alt_gap).
+    Returns the (basis, verdict) that stand."""
     named = verdict.top(basis.ranking) if verdict.named else None
     g_cal = named["holdout_gap"] if named else calibration["holdout_gap"]["after"]
     ask.progress(f"      the calibrated model{' with ' + named['effect'] if named else ''} leaves the held-out "
                  f"runs unexplained ({g_cal:.3f}): the effects on the config as given, pairs included")
     alt = _verdict(ask, evidence, given, noise, gate)
-    explains = alt.explains(given.ranking)
+    explains = _alt_gap(ask, verdict, alt, given.ranking)
     if explains is None or alt.finding or not explains["holdout_gap"] < g_cal:
         ask.progress("      no better on the config as given: the calibration stands"
                      + (f" with {named['effect']}" if named else ", unexplained"))
@@ -160,6 +162,27 @@ def _effects_after_all(ask, evidence, calibration, basis, verdict, given, noise,
                                "explains what the calibration leaves unexplained; calibration not kept",
                                ask.progress)
     return given, alt
+
+
+def _alt_gap(ask, verdict, alt, ranking):
+    """The entry the config as given stands on against the calibrated model
+    (_effects_after_all): what its verdict explains (Verdict.explains: a pair whose
+    second is not told apart counts, against a calibration that names nothing).
+    When the calibrated model names the same single effect, the two differ only in
+    the calibration's values: the effect's own fit stands against them, since the
+    unnamed second's share would be credited to no parameter and no effect (friction
+    on a rig whose spring valve's Cd is 25 % low: friction with the Cd and damping
+    calibrated 0.590, friction alone 2.345, friction + a second not told apart
+    0.385: the pair, named as friction alone, set the right Cd aside, and which of
+    the two landed lower moved with numpy's kernel set)."""
+    explains = alt.explains(ranking)
+    if explains is None or alt.kept or not verdict.named or verdict.effects != alt.effects:
+        return explains
+    if explains is not ranking[0]:
+        ask.progress(f"      {ranking[0]['effect']} named on both: its fit alone ({ranking[0]['holdout_gap']:.3f}) "
+                     f"against the calibration's values, not {explains['effect']} ({explains['holdout_gap']:.3f}) "
+                     "whose second is not named")
+    return ranking[0]
 
 
 def _before_after_step(ask, evidence, basis, verdict, calibration, user_nominal_hold):
