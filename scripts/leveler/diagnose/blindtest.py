@@ -503,15 +503,17 @@ def family_report(results):
     false_eff = sum(1 for r in results if r["truth"] in ("none", "unknown") and r["verdict"] in fx.NAMES)
     second = sum(1 for r in results if len(r["effects"]) > 1)
     lines.append(f"catalogued effect named where there is none of them: {false_eff}; a second effect kept: {second}")
-    lines.append(f"{'form':<22}{'truth':<15}{'right':>6} {'median shrink':>14}  named")
-    for form in dict.fromkeys(r["form"] for r in results):
+    forms = list(dict.fromkeys(r["form"] for r in results))
+    w = max([22] + [len(f) + 1 for f in forms])     # a combo form names its effect and its value
+    lines.append(f"{'form':<{w}}{'truth':<15}{'right':>6} {'median shrink':>14}  named")
+    for form in forms:
         rs = [r for r in results if r["form"] == form]
         sh = [r["shrink_pct"] for r in rs if r["right"]]
         extra = ""
         if fam in ("misset", "combo"):
             extra = "  param named: " + ",".join("?" if r["calibration"] is None else
                                                  ("yes" if r["param_named"] else "no") for r in rs)
-        lines.append(f"{form:<22}{rs[0]['truth']:<15}{sum(r['right'] for r in rs):>3}/{len(rs):<2} "
+        lines.append(f"{form:<{w}}{rs[0]['truth']:<15}{sum(r['right'] for r in rs):>3}/{len(rs):<2} "
                      f"{(f'{np.median(sh):.1f}%' if sh else '-'):>14}  {', '.join(_named(r) for r in rs)}{extra}")
     return lines
 
