@@ -86,7 +86,8 @@ def confidence_step(ask, evidence, basis, verdict, look, calibration, cal_config
     sure = confidence.assess(effects, basis.ranking, basis.gaps[1], noise,
                              look["lookalikes"] and look["lookalikes"]["group"], look["experiment"],
                              verdict.finding, rival, alike_names(calibration), moved_parts(calibration),
-                             basis.threshold)
+                             basis.threshold, unmoved=bool(calibration and calibration.get("kept") and
+                                                           not calibration.get("moved")))
     designs = evidence.designs_experiments
     if designs and sure["set"][1:] == ["none"] and not look["experiment"] and not ask.design_pair:
         hint = next(r for r in basis.ranking if r["effect"] == sure["set"][0])     # confidence.hinted

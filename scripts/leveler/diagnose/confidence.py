@@ -47,6 +47,10 @@ NONE_QUIET = 1.3            # a `none` is sure when what is left is within 1.3 n
 # logs as well (a valve whose Cd falls with the pressure ratio calibrated as the vent's
 # Cd beside a mis-set spring volume, both within the noise).
 NONE_SURE_PARTS = 1
+# ... and it moved some value by a change the report calls material
+# (calibrate.MATERIAL_REL): a calibration kept only for changes under it closed a gap
+# a few noise gaps wide, as a weak effect leaves (a pipe of lumped segments at 1000 lb,
+# 3.3 noise gaps, closed to 1.1 by the compressor +0.3 % and n -0.9 %).
 
 
 def _measured():
@@ -121,7 +125,7 @@ def hinted(effects, ranking, threshold, unexplained_finding=None):
 
 
 def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained_finding, rival=None,
-           alike_values=None, moved=None, threshold=None):
+           alike_values=None, moved=None, threshold=None, unmoved=False):
     """{level, probability, set, why, experiment}. effects: the named effect(s)
     ([] for none); ranking: candidates by held-out shrink over the calibrated model;
     rival: an effect that, on the config as given, explains the held-out runs as
@@ -129,7 +133,8 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
     calibration's moved values and the others that alone explain the runs as well
     as its first ([name, ...], certainty.alike_names); moved: the kept calibration's
     moved values by part of the rig ({section: [name, ...]}, certainty.moved_parts);
-    threshold: the share (%) of the held-out gap an effect must close (hinted)."""
+    threshold: the share (%) of the held-out gap an effect must close (hinted);
+    unmoved: a calibration was kept with no value moved materially."""
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
     margin = best["shrink_pct"] - runner["shrink_pct"] if runner else 100.0
@@ -156,6 +161,10 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
         level, cset = "likely", ["calibration: " + n for n in names] + [best["effect"]]
         why = (f"the calibrated model is within the logs' noise, but it moved values of {len(moved)} parts "
                f"({', '.join(names)}): an effect beside fewer mis-set values may explain the logs as well")
+    elif not effects and unmoved and noise > 0 and cal_gap <= NONE_QUIET * noise:
+        level, cset = "likely", ["none"] + [r["effect"] for r in ranking[:2]]
+        why = ("the calibrated model is within the logs' noise, but only through values each moved less than "
+               "the report calls a change: a weak effect may leave what they closed")
     elif not effects:
         quiet = noise > 0 and cal_gap <= NONE_QUIET * noise
         level = "sure" if quiet else "likely"
