@@ -218,3 +218,18 @@ def test_ranked_second_explains_what_the_leader_leaves(tmp_path, capsys):
     assert by["sensor_lag+leak"]["closes_pct_of_leader_gap"] >= 50.0
     assert by["sensor_lag+area"]["closes_pct_of_leader_gap"] < 10.0
     assert "Ranked second" in (tmp_path / "out" / "report.html").read_text()
+
+
+def test_the_calibrated_line_says_what_a_set_aside_calibration_would_have_moved():
+    # misset seed 13, the pipe +30 % rig: the calibration (n -1.5 %) set aside for line_delay, alike
+    rival = {"effect": "line_delay", "moved": ["polytropic_exponent"], "effect_gap": 0.381, "calibration_gap": 0.382}
+    params = [{"name": "polytropic_exponent", "change_pct": -1.5, "moved": False}]
+    result = {"experiment": {"between": ["line_delay", "calibration"]}}
+    line = cli._calibrated_line({"parameters": params, "rival": rival, "alike": []}, result)
+    assert line == ("not kept; polytropic_exponent would explain the held-out runs as well as line_delay "
+                    "(experiment.csv tells them apart)")
+    # kept: the values moved, the effect beside them
+    params[0]["moved"] = True
+    line = cli._calibrated_line({"parameters": params, "rival": rival, "alike": []}, result)
+    assert line.startswith("polytropic_exponent -1.5%; line_delay alone would explain")
+    assert cli._calibrated_line({"parameters": [dict(params[0], moved=False)]}, {}) == "no parameter moved"

@@ -201,18 +201,26 @@ def diagnose_into(a, say, tmp, out):
     if result.get("config_mismatch"):
         say("verdict against logs of another config: " + ", ".join(
             f"{m['logged']} (not {m['config']})" for m in result["config_mismatch"]))
-    cal = result.get("calibration") or {}
+    say("calibrated: " + _calibrated_line(result.get("calibration") or {}, result))
+    say(f"effect: {' + '.join(result['effects']) or 'none'}; held-out shrink {result['shrink_pct']:.1f}%; "
+        f"{result['seconds']:.1f} s; wrote {out}/diagnosis.json and report.html")
+    return 0
+
+
+def _calibrated_line(cal, result):
+    """The closing line's calibration: the values moved (with the effect that explains
+    the held-out runs about as well, and the values alike alone), else, the calibration
+    set aside, what it would have moved and for which effect."""
     moved = [p for p in cal.get("parameters", []) if p["moved"]]
     rival = cal.get("rival")
     apart = (" (experiment.csv tells them apart)" if "calibration" in
              (result.get("experiment") or {}).get("between", []) else "")
-    say("calibrated: " + (", ".join(f"{p['name']} {p['change_pct']:+.1f}%" for p in moved) +
-                          (f"; {rival['effect']} alone would explain the held-out runs about as well{apart}"
-                           if rival else "") +
-                          ("; alike alone: " + ", ".join(f"{a['name']} {a['change_pct']:+.1f}%" for a in cal["alike"])
-                           if moved and cal.get("alike") else "") or
-                          (f"not kept; {', '.join(rival['moved'])} would explain the held-out runs as well as "
-                           f"{rival['effect']}{apart}" if rival else "no parameter moved")))
-    say(f"effect: {' + '.join(result['effects']) or 'none'}; held-out shrink {result['shrink_pct']:.1f}%; "
-        f"{result['seconds']:.1f} s; wrote {out}/diagnosis.json and report.html")
-    return 0
+    if moved:
+        return (", ".join(f"{p['name']} {p['change_pct']:+.1f}%" for p in moved)
+                + (f"; {rival['effect']} alone would explain the held-out runs about as well{apart}" if rival else "")
+                + ("; alike alone: " + ", ".join(f"{a['name']} {a['change_pct']:+.1f}%" for a in cal["alike"])
+                   if cal.get("alike") else ""))
+    if rival:
+        return (f"not kept; {', '.join(rival['moved'])} would explain the held-out runs as well as "
+                f"{rival['effect']}{apart}")
+    return "no parameter moved"
