@@ -125,16 +125,22 @@ def test_a_true_pair_far_ahead_of_the_other_partners_is_named():
     assert not entries[1]["explains"]                          # fails rule 1 too: not an explanation
 
 
+def unkept(nominal, singles, pairs_gaps):
+    """A case whose pairs all fail to be kept (a second not told apart): (its ranking, best
+    held-out gap first, and the pair entries judged)."""
+    by, entries = measured(nominal, singles, pairs_gaps)
+    assert pairs.judge(entries, by, 15.0, others=entries) is None
+    return sorted(by.values(), key=lambda r: r["holdout_gap"]), entries
+
+
 def test_a_leader_named_alone_over_a_pair_not_told_apart_stands_on_the_pairs_gap():
     # offform seed 3, a stick-slip friction (accumulator, rig log): the calibrated model (damping
     # moved) leaves 1.163 unexplained; on the config as given friction alone leaves 1.576, and
     # friction + area 0.612, not told apart from friction + thermal 0.658. The config as given
     # explains better than the calibration (pipeline._effects_after_all compares 0.612, not 1.576)
     from leveler.diagnose.context import Verdict
-    by, entries = measured(9.437, {"friction": 1.576, "line_delay": 2.468, "area": 3.648, "thermal": 4.0},
-                           {"friction+area": (0.612, False), "friction+thermal": (0.658, False)})
-    ranking = sorted(by.values(), key=lambda r: r["holdout_gap"])
-    assert pairs.judge(entries, by, 15.0, others=entries) is None
+    ranking, entries = unkept(9.437, {"friction": 1.576, "line_delay": 2.468, "area": 3.648, "thermal": 4.0},
+                              {"friction+area": (0.612, False), "friction+thermal": (0.658, False)})
     v = Verdict(True, True, entries, None, None, None, "friction", ["friction"])
     assert v.explains(ranking)["holdout_gap"] == 0.612 < 1.163
     assert v.top(ranking)["effect"] == "friction"                        # named alone
@@ -149,10 +155,8 @@ def test_the_calibration_named_with_the_same_effect_is_judged_against_its_fit_al
     from types import SimpleNamespace
     from leveler.diagnose.context import Verdict
     from leveler.diagnose.pipeline import _alt_gap
-    by, entries = measured(11.879, {"friction": 2.345, "sensor_lag": 4.528, "thermal": 6.910, "line_delay": 8.315},
-                           {"friction+line_delay": (0.385, False), "friction+thermal": (0.952, False)})
-    ranking = sorted(by.values(), key=lambda r: r["holdout_gap"])
-    assert pairs.judge(entries, by, 15.0, others=entries) is None
+    ranking, entries = unkept(11.879, {"friction": 2.345, "sensor_lag": 4.528, "thermal": 6.910, "line_delay": 8.315},
+                              {"friction+line_delay": (0.385, False), "friction+thermal": (0.952, False)})
     alt = Verdict(True, True, entries, None, None, None, "friction", ["friction"])
     said = []
     ask = SimpleNamespace(progress=said.append)
