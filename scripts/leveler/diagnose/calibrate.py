@@ -318,7 +318,7 @@ def worth_adding(r_old, ss_new):
     return n_eff * math.log(ss_new / ss_old) + math.log(n_eff) < 0.0
 
 
-def fit_calibration(cal, max_nfev=12, progress=None, jobs=1, first=None):
+def fit_calibration(cal, max_nfev=12, progress=None, jobs=1, first=None, path=None):
     """Forward selection: each round fits every parameter not yet chosen alone
     (the chosen ones held; from the best of a grid over its range, grid_start), adds
     the one that lowers the calibration residual most if it pays for itself
@@ -329,10 +329,13 @@ def fit_calibration(cal, max_nfev=12, progress=None, jobs=1, first=None):
     Returns (unit point, chosen indices, {index: unit point} of the first round: each
     parameter fitted alone from the config, where not pinned at a chosen span's end).
     jobs: processes for a round's trials. first: (index, unit point) taken as the
-    first choice instead of the first round's (held_out_first)."""
+    first choice instead of the first round's (held_out_first). path: a list that
+    gets (unit point, chosen) after each value added."""
     u = np.array(cal.space.u0, dtype=float) if first is None else np.array(first[1], dtype=float)
     chosen, singles = ([] if first is None else [first[0]]), None
     r = cal.data_residual(u)
+    if path is not None and chosen:
+        path.append((u, list(chosen)))
     with _TrialPool(cal, jobs) as trials_of:
         while len(chosen) < min(MAX_MOVED, len(u)):
             ss_u = float(np.sum(r ** 2))
@@ -347,6 +350,8 @@ def fit_calibration(cal, max_nfev=12, progress=None, jobs=1, first=None):
             chosen.append(j)
             u = fit_subset(cal, v, chosen, 2 * max_nfev) if len(chosen) > 1 else v
             r = cal.data_residual(u)
+            if path is not None:
+                path.append((u, list(chosen)))
             if progress:
                 progress(f"      + {cal.space.params[j].name:<22} calibration gap {fit.cost_to_gap(r, len(cal.runs)):.3f}")
     return u, chosen, singles or {}
@@ -434,6 +439,9 @@ def held_out_first(cal, hold, singles, chosen, alike, after, max_nfev, jobs, pro
     cannot tell apart are told apart by the held-out runs (and by an experiment
     among them), as effects are (a pipe 30 % larger fits the steps as well as a
     lower polytropic exponent; the compressor against the shut valve says which).
+    The second calibration stops where the held-out runs are best along its path: a
+    value added because it lowers the calibration runs' gap (the compressor after a
+    larger pipe) can leave the held-out runs worse than the alike value alone.
     Returns (u, chosen, held-out gap) of the other when it is the better on the
     held-out runs, else None."""
     better = [a for a in alike if a["holdout_gap"] < a["first_holdout_gap"]]
@@ -443,8 +451,11 @@ def held_out_first(cal, hold, singles, chosen, alike, after, max_nfev, jobs, pro
     k = [n.name for n in cal.space.params].index(a["name"])
     progress(f"      {a['name']} alone explains the held-out runs better than {cal.space.params[chosen[0]].name} "
              f"alone ({a['holdout_gap']:.3f} against {a['first_holdout_gap']:.3f}): calibrating from it")
-    u2, chosen2, _ = fit_calibration(cal, max_nfev, progress, jobs, first=(k, singles[k]))
-    g2 = hold.gap(u2)
+    path = []
+    fit_calibration(cal, max_nfev, progress, jobs, first=(k, singles[k]), path=path)
+    g2, u2, chosen2 = min(((hold.gap(u), u, c) for u, c in path), key=lambda x: x[0])
+    if len(chosen2) < len(path[-1][1]):
+        progress(f"      from {a['name']}: the held-out runs are best with {', '.join(cal.space.params[j].name for j in chosen2)}")
     progress(f"      from {a['name']}: held-out gap {g2:.3f} against {after:.3f}, "
              + ("taken" if g2 < after else "the first calibration stands"))
     return (u2, chosen2, g2) if g2 < after else None
