@@ -26,7 +26,7 @@
 #include "effects.h"
 
 /* The ABI of this header; engine.py refuses a library with another. */
-#define ENGINE_ABI 6
+#define ENGINE_ABI 7
 int engine_abi_version(void);
 /* The simulator's tick, s (SIM_TICK_S: the firmware's LEVELER_TICK_MS). */
 double engine_tick_s(void);
@@ -73,6 +73,10 @@ typedef struct {
      * plant's P1 is below it instead of as logged (a log whose compressor
      * chatters faster than it samples: the replay regulates as the rig did) */
     const double *p1_track;
+    /* replay only, may be NULL: where finite, the spring valve and the vent are
+     * open while the plant's P2 is above it and shut below it instead of as
+     * logged (a log whose discharge chatters faster than it samples) */
+    const double *p2_track;
     /* closed loop only: register writes (mode, manual requests) made through
      * the firmware's register map at write_t_s[i] (increasing), write_values
      * n_writes x SIM_SCHEDULE_REG_COUNT (engine_schedule_column), -1 = none */

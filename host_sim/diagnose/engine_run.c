@@ -18,6 +18,7 @@
 typedef struct {
     const int32_t *commands;
     const double *p1_track;
+    const double *p2_track;
     const plant_fx *f;
 } replay_ctx;
 
@@ -32,6 +33,8 @@ static void replay_commands(sim_stepper *s, void *user, bool out[HAL_OUT_COUNT])
     out[HAL_OUT_SPRING_VALVE] = c[1] != 0;
     out[HAL_OUT_VENT_VALVE] = c[2] != 0;
     out[HAL_OUT_ACC_VALVE] = c[3] != 0;
+    if (r->p2_track && isfinite(r->p2_track[s->k]))
+        out[HAL_OUT_SPRING_VALVE] = out[HAL_OUT_VENT_VALVE] = r->f->pl.x[PLANT_X_P_SPRING] > r->p2_track[s->k];
 }
 
 static double logged_load(sim_stepper *s, void *user, double t_s)
@@ -179,7 +182,7 @@ static int run_set(engine *e, const engine_request *rq, const plant_fx_model *co
         return -1;
     plant_rng rng;
     plant_rng_seed(&rng, e->cfg.sensors.noise_seed);
-    replay_ctx replay = {rq->commands, rq->p1_track, &e->run_fx};
+    replay_ctx replay = {rq->commands, rq->p1_track, rq->p2_track, &e->run_fx};
     sim_schedule_writer writer = *rows;
     sim_stepper st = {.cfg = &e->cfg, .plant = &e->run_fx, .ops = &sim_fx_plant,
                       .commands = closed ? sim_firmware_commands : replay_commands,

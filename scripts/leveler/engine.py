@@ -25,7 +25,7 @@ import numpy as np
 from . import paths
 from .errors import InputError
 
-ABI = 6                 # ENGINE_ABI of host_sim/diagnose/engine.h
+ABI = 7                 # ENGINE_ABI of host_sim/diagnose/engine.h
 CANDIDATES, TRUTH, TRUTH2 = 0, 1, 2     # the effect tables a request may name
 EFFECTS_NOMINAL = 1     # engine_open's flag: the config's effects at their nominal values
 MAX_MODELS = 2          # PLANT_FX_MAX_MODELS
@@ -39,7 +39,7 @@ _p, _s, _int, _dbl = ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_do
 
 class _Request(ctypes.Structure):
     """engine_request (engine.h), field for field."""
-    _fields_ = [("n", _int), ("t_s", _d), ("load_n", _d), ("commands", _i), ("p1_track", _d),
+    _fields_ = [("n", _int), ("t_s", _d), ("load_n", _d), ("commands", _i), ("p1_track", _d), ("p2_track", _d),
                 ("n_writes", _int), ("write_t_s", _d), ("write_values", _i), ("init", _d),
                 ("catalogue", _int), ("fx_kinds", _i), ("n_sets", _int), ("fx_params", _d)]
 
@@ -212,7 +212,7 @@ class Engine:
     # ---- runs ----
 
     def run(self, t_s, load_n, commands=None, p1_track=None, writes=None, init=None, catalogue=CANDIDATES,
-            kinds=None, params=None):
+            kinds=None, params=None, p2_track=None):
         """One run per parameter set. commands: n x 4 (compressor, spring, vent,
         acc) to replay, None for the firmware in the loop (then writes: schedule
         rows [(t_s, {register: value})] made through its register map). kinds:
@@ -227,11 +227,12 @@ class Engine:
         p = np.ascontiguousarray(p.reshape(-1, MAX_MODELS, MAX_PARAMS))
         wt, wv = _writes(writes)
         # named, so the arrays outlive the call that reads them through pointers
-        cmd, track, start = _i32(commands), _f64(p1_track), _f64(init)
+        cmd, track, track2, start = _i32(commands), _f64(p1_track), _f64(p2_track), _f64(init)
         ids = _i32(np.zeros(MAX_MODELS) if kinds is None else kinds)
-        _sizes(n, load=(load, (n,)), commands=(cmd, (n, 4)), p1_track=(track, (n,)), init=(start, (5,)),
+        _sizes(n, load=(load, (n,)), commands=(cmd, (n, 4)), p1_track=(track, (n,)), p2_track=(track2, (n,)),
+               init=(start, (5,)),
                kinds=(ids, (MAX_MODELS,)))
-        rq = _Request(n, dptr(t), dptr(load), iptr(cmd), dptr(track), 0 if wt is None else len(wt),
+        rq = _Request(n, dptr(t), dptr(load), iptr(cmd), dptr(track), dptr(track2), 0 if wt is None else len(wt),
                       dptr(wt), iptr(wv), dptr(start), catalogue, iptr(ids), len(p), dptr(p))
         sensed = np.empty((len(p), n, 4))
         act = np.empty((len(p), n, 4), dtype=np.int32)

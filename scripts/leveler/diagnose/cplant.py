@@ -105,16 +105,18 @@ class CPlant(Simulator):
         self.handle(name)
 
     def _call(self, config, t_s, load_n, commands, kind, values, init, track=None, writes=None,
-              effects_nominal=False, catalogue=engine.CANDIDATES, lib=None):
+              effects_nominal=False, catalogue=engine.CANDIDATES, lib=None, track2=None):
         """kind: an effect id (0 = none) and values its list, or up to two ids and
-        a list of lists (two effects at once). commands None: the firmware in the loop."""
+        a list of lists (two effects at once). commands None: the firmware in the loop.
+        track, track2: the P1 the compressor and the P2 the discharge regulate to
+        where finite (chatter_track)."""
         n = len(t_s)
         kinds, p = effect_arrays(kind, values)
         cmd = None
         if commands is not None:
             cmd = np.stack([commands.get(c, np.zeros(n)) for c in COMMANDS], axis=1)
         e = self.handle(config, effects_nominal, lib)
-        out, act = e.run(t_s, load_n, cmd, track, writes, init, catalogue, kinds, p)
+        out, act = e.run(t_s, load_n, cmd, track, writes, init, catalogue, kinds, p, p2_track=track2)
         return Trace(np.ascontiguousarray(t_s, dtype=np.float64), {s: out[:, i].copy() for i, s in enumerate(SIGNALS)},
                      {c: act[:, i].copy() for i, c in enumerate(COMMANDS)})
 
@@ -207,18 +209,20 @@ class CPlant(Simulator):
                                      writes=getattr(run, "writes", None))
         if is_fine(run.t_s):      # the tick's own log: every switch is there, replayed as is
             return self._call(config, run.t_s, run.load_n, run.commands, kind, values, init)
-        return self._replay_fine(config, run, kind, values, init, chatter_track(run))
+        return self._replay_fine(config, run, kind, values, init, chatter_track(run),
+                                 chatter_track(run, "vent_valve", "p_spring_pa"))
 
-    def _replay_fine(self, config, run, kind, values, init, track=None):
+    def _replay_fine(self, config, run, kind, values, init, track=None, track2=None):
         """A coarse or jittered log: replay on the 10 ms grid with each switch halfway
-        between the samples that bracket it, read back at the log's times."""
+        between the samples that bracket it, read back at the log's times; where a
+        command chatters, regulated to its track instead (chatter_track)."""
         rel = run.t_s - run.t_s[0]
         grid = np.round(np.arange(0.0, rel[-1] + FINE_TICK_S / 2, FINE_TICK_S), 6)
         idx = nearest_index(rel, grid)
         cmds = {k: np.asarray(v)[idx] for k, v in run.commands.items()}
-        if track is not None:
-            track = track[idx]      # the nearest sample's (already smoothed) value
-        tr = self._call(config, grid, np.asarray(run.load_n)[idx], cmds, kind, values, init, track)
+        # the nearest sample's (already smoothed) value
+        track, track2 = (None if x is None else x[idx] for x in (track, track2))
+        tr = self._call(config, grid, np.asarray(run.load_n)[idx], cmds, kind, values, init, track, track2=track2)
         back = nearest_index(grid, rel)
         return Trace(run.t_s, {k: np.interp(rel, grid, v) for k, v in tr.signals.items()},
                      {k: v[back] for k, v in tr.commands.items()})

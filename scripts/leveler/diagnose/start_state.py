@@ -1,7 +1,7 @@
 """A log's start state, estimated from the log alone: the plant's state at its
 first sample (height, pressures, the compressor's duty; the motor speed is
 never logged) and, where the logged compressor chatters faster than the log
-samples, the P1 a replay regulates to. The simulator (cplant.py) starts its
+samples, the P1 a replay regulates to (the P2 where the vent chatters). The simulator (cplant.py) starts its
 runs from these; nothing here runs the plant."""
 import numpy as np
 
@@ -66,26 +66,28 @@ def _window_counts(t, events, half):
     return np.searchsorted(events, t + half) - np.searchsorted(events, t - half)
 
 
-def chatter_track(run):
-    """Where the logged compressor chatters (CHATTER_SWITCHES or more switches within
-    a second: algorithm 2 at the accumulator's charge limit, where sensor noise alone
-    flips the rule), the P1 the replay's compressor regulates to: the logged P1
-    averaged over +-CHATTER_SMOOTH_S. A log slower than the chatter does not hold its
-    pattern, and replaying the samples open loop would integrate the wrong duty into
-    the pipe (the rig's loop corrects it). None elsewhere. Used for logs slower than
-    the tick only: a tick-rate log holds every switch, and its exact replay beats
-    regulating (measured on the blind test's accumulator logs)."""
-    comp = run.commands.get("compressor") if run.commands else None
-    p1 = run.signals.get("p_pipe_pa")
-    if comp is None or p1 is None or not np.isfinite(p1).mean() > 0.5:
+def chatter_track(run, command="compressor", signal="p_pipe_pa"):
+    """Where the logged `command` chatters (CHATTER_SWITCHES or more switches within
+    a second), the pressure the replay regulates to there: the logged `signal`
+    averaged over +-CHATTER_SMOOTH_S; None elsewhere. A log slower than the chatter
+    does not hold its pattern, and replaying the samples open loop would integrate
+    the wrong duty (the rig's loop corrects it). The compressor (algorithm 2 at the
+    accumulator's charge limit, where sensor noise alone flips the rule) regulates
+    P1; the vent with the spring valve (algorithm 1 at the band's edge, a discharge
+    of a few seconds in pulses no rig-rate log resolves) regulates P2. Used for logs
+    slower than the tick only: a tick-rate log holds every switch, and its exact
+    replay beats regulating (measured on the blind test's accumulator logs)."""
+    cmd = run.commands.get(command) if run.commands else None
+    p = run.signals.get(signal)
+    if cmd is None or p is None or not np.isfinite(p).mean() > 0.5:
         return None
     t = run.t_s
-    t_sw = t[1:][np.diff(np.asarray(comp, dtype=int)) != 0]
+    t_sw = t[1:][np.diff(np.asarray(cmd, dtype=int)) != 0]
     chatter = _window_counts(t, t_sw, 0.5) >= CHATTER_SWITCHES
     if not chatter.any():
         return None
-    ok = np.isfinite(p1)
-    csum = np.concatenate([[0.0], np.cumsum(np.where(ok, p1, 0.0))])
+    ok = np.isfinite(p)
+    csum = np.concatenate([[0.0], np.cumsum(np.where(ok, p, 0.0))])
     cnt = np.concatenate([[0], np.cumsum(ok)])
     lo = np.searchsorted(t, t - CHATTER_SMOOTH_S)
     hi = np.searchsorted(t, t + CHATTER_SMOOTH_S, side="right")
