@@ -10,7 +10,7 @@ import pytest
 from conftest import LB, thesis_schedule
 from leveler.diagnose import blindtest as bt
 from leveler.diagnose import design, runs, separability
-from leveler.diagnose.start_state import chatter_track, initial_state
+from leveler.diagnose.start_state import DISCHARGE, chatter_track, initial_state
 from leveler.diagnose.fit import Problem, cost_to_gap, noise_gap, run_residual, start_shifts
 from leveler.diagnose.model import REPLAY
 from leveler.diagnose.runs import Run
@@ -75,7 +75,7 @@ def test_a_rig_log_whose_vent_chatters_replays_to_its_truth(cplant, tmp_path):
     spec, system, kind, _, _ = bt.form_logs(cplant, str(tmp_path), 1, spec)
     assert (system, kind) == ("900lb", "rig")
     run = runs.load_run(str(tmp_path / "logs" / "cal1.csv"))
-    vent = chatter_track(run, "vent_valve", "p_spring_pa")
+    vent = chatter_track(run, DISCHARGE, "p_spring_pa")
     assert vent is not None and np.isfinite(vent).sum() * np.median(np.diff(run.t_s)) > 2.0
     assert chatter_track(run) is None              # the compressor does not chatter here
     rig = str(tmp_path / "rig.ini")

@@ -13,7 +13,7 @@ from . import effects as fx
 from .errors import DiagnoseInputError
 from .model import CLOSED_LOOP, Simulator, Trace
 from .runs import COMMANDS, SIGNALS
-from .start_state import chatter_track, initial_state
+from .start_state import DISCHARGE, chatter_track, initial_state
 
 from leveler import engine, paths
 
@@ -210,7 +210,7 @@ class CPlant(Simulator):
         if is_fine(run.t_s):      # the tick's own log: every switch is there, replayed as is
             return self._call(config, run.t_s, run.load_n, run.commands, kind, values, init)
         return self._replay_fine(config, run, kind, values, init, chatter_track(run),
-                                 chatter_track(run, "vent_valve", "p_spring_pa"))
+                                 chatter_track(run, DISCHARGE, "p_spring_pa"))
 
     def _replay_fine(self, config, run, kind, values, init, track=None, track2=None):
         """A coarse or jittered log: replay on the 10 ms grid with each switch halfway

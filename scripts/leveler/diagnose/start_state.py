@@ -7,8 +7,9 @@ import numpy as np
 
 QUIET_MAX_S = 2.0       # the quiet start: at most this long
 DUTY_WINDOW_S = 1.0     # compressor duty at the start, for the motor speed
-CHATTER_SWITCHES = 4    # compressor switches within a second that make a stretch "chatter"
-CHATTER_SMOOTH_S = 0.1  # the P1 a chattering stretch regulates to: logged P1 averaged over +-this
+CHATTER_SWITCHES = 4    # switches of a command within a second that make a stretch "chatter"
+CHATTER_SMOOTH_S = 0.1  # the pressure a chattering stretch regulates to: the logged one averaged over +-this
+DISCHARGE = ("vent_valve", "spring_valve")   # what algorithm 1 switches together to let air out
 
 
 def quiet_end(run, max_s=QUIET_MAX_S):
@@ -66,24 +67,27 @@ def _window_counts(t, events, half):
     return np.searchsorted(events, t + half) - np.searchsorted(events, t - half)
 
 
-def chatter_track(run, command="compressor", signal="p_pipe_pa"):
-    """Where the logged `command` chatters (CHATTER_SWITCHES or more switches within
-    a second), the pressure the replay regulates to there: the logged `signal`
+def chatter_track(run, commands=("compressor",), signal="p_pipe_pa"):
+    """Where each of the logged `commands` chatters (CHATTER_SWITCHES or more switches
+    within a second), the pressure the replay regulates to there: the logged `signal`
     averaged over +-CHATTER_SMOOTH_S; None elsewhere. A log slower than the chatter
     does not hold its pattern, and replaying the samples open loop would integrate
     the wrong duty (the rig's loop corrects it). The compressor (algorithm 2 at the
     accumulator's charge limit, where sensor noise alone flips the rule) regulates
-    P1; the vent with the spring valve (algorithm 1 at the band's edge, a discharge
-    of a few seconds in pulses no rig-rate log resolves) regulates P2. Used for logs
+    P1; the vent with the spring valve (DISCHARGE: algorithm 1 at the band's edge, a
+    discharge of a few seconds in pulses no rig-rate log resolves) regulates P2; a
+    vent chattering with the spring valve held is replayed as logged. Used for logs
     slower than the tick only: a tick-rate log holds every switch, and its exact
     replay beats regulating (measured on the blind test's accumulator logs)."""
-    cmd = run.commands.get(command) if run.commands else None
     p = run.signals.get(signal)
-    if cmd is None or p is None or not np.isfinite(p).mean() > 0.5:
+    cmds = [run.commands.get(c) for c in commands] if run.commands else [None]
+    if any(c is None for c in cmds) or p is None or not np.isfinite(p).mean() > 0.5:
         return None
     t = run.t_s
-    t_sw = t[1:][np.diff(np.asarray(cmd, dtype=int)) != 0]
-    chatter = _window_counts(t, t_sw, 0.5) >= CHATTER_SWITCHES
+    chatter = np.ones(len(t), dtype=bool)
+    for c in cmds:
+        t_sw = t[1:][np.diff(np.asarray(c, dtype=int)) != 0]
+        chatter &= _window_counts(t, t_sw, 0.5) >= CHATTER_SWITCHES
     if not chatter.any():
         return None
     ok = np.isfinite(p)
