@@ -64,22 +64,34 @@ def test_a_coarse_jittered_log_replays_to_its_truth(cplant):
     assert err < 0.5e-3 and err < err_zoh, (err, err_zoh)
 
 
-def test_a_rig_log_whose_vent_chatters_replays_to_its_truth(cplant, tmp_path):
-    """The blind test's misset seed 1 rig log (24 ms, jittered): algorithm 1 at the
-    band's top pulses the vent and the spring valve for about 3.6 s, faster than the
-    log samples. Replayed sample by sample, the air let out is wrong, and the rig's
-    own config left 3.1 times the log's noise (the hysteresis keeps the error as a
-    height offset). Regulated to the logged P2 there (chatter_track), the rig's own
-    config reproduces its log within 1.5 times its noise."""
-    spec = next(s for s in bt.family_specs("misset") if s["form"] == "pipe_volume+30%")
-    spec, system, kind, _, _ = bt.form_logs(cplant, str(tmp_path), 1, spec)
-    assert (system, kind) == ("900lb", "rig")
-    run = runs.load_run(str(tmp_path / "logs" / "cal1.csv"))
-    vent = chatter_track(run, DISCHARGE, "p_spring_pa")
-    assert vent is not None and np.isfinite(vent).sum() * np.median(np.diff(run.t_s)) > 2.0
-    assert chatter_track(run) is None              # the compressor does not chatter here
-    rig = str(tmp_path / "rig.ini")
-    assert Problem(cplant, rig, [run], REPLAY).gap(None, {}) < 1.5 * noise_gap([run])
+def test_rig_logs_whose_discharge_chatters_replay_nearer_their_truth(cplant, tmp_path):
+    """Effect-free 900 lb rig logs (20-50 Hz, jittered; seeds 20-39, no blind-test
+    case among them) where algorithm 1 at the band's top pulses the vent and the
+    spring valve for seconds, faster than the log samples. Replayed by its samples,
+    the air let out is wrong by chance, and the hysteresis keeps the error as a
+    height offset: the rig's own config left up to 5 times the logs' noise. Regulated
+    to the logged P2 over the stretch (chatter_track), the same config reproduces
+    them nearer: the median and the worst gap both lower."""
+    base = next(s for s in bt.family_specs("misset") if s["form"] == "pipe_volume+30%")
+    tracked, logged, noise = [], [], []
+    for seed in range(20, 40):
+        folder = tmp_path / str(seed)
+        _, system, kind, _, _ = bt.form_logs(cplant, str(folder), seed, dict(base, change=1.0),
+                                             force=(None, "rig", "step", None))
+        assert (system, kind) == ("900lb", "rig")
+        rig = str(folder / "rig.ini")
+        for name in ("cal1", "cal2", "hold"):
+            run = runs.load_run(str(folder / "logs" / f"{name}.csv"))
+            if chatter_track(run, DISCHARGE, "p_spring_pa", trim=True) is None:
+                continue
+            init = cplant.start_state(rig, run)
+            as_logged = cplant._replay_fine(rig, run, 0, [], init, chatter_track(run), None)
+            tracked.append(cost_to_gap(run_residual(run, cplant.simulate(rig, run, None, {}, REPLAY)), 1))
+            logged.append(cost_to_gap(run_residual(run, as_logged), 1))
+            noise.append(noise_gap([run]))
+    assert len(tracked) >= 8
+    assert np.median(tracked) < np.median(logged) and max(tracked) < max(logged), (tracked, logged)
+    assert np.median(tracked) < 2.0 * np.median(noise)
 
 
 def test_a_leak_is_told_apart_from_friction_and_the_design_sees_no_difference_in_twins(cplant):

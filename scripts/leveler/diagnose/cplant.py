@@ -210,7 +210,7 @@ class CPlant(Simulator):
         if is_fine(run.t_s):      # the tick's own log: every switch is there, replayed as is
             return self._call(config, run.t_s, run.load_n, run.commands, kind, values, init)
         return self._replay_fine(config, run, kind, values, init, chatter_track(run),
-                                 chatter_track(run, DISCHARGE, "p_spring_pa"))
+                                 chatter_track(run, DISCHARGE, "p_spring_pa", trim=True))
 
     def _replay_fine(self, config, run, kind, values, init, track=None, track2=None):
         """A coarse or jittered log: replay on the 10 ms grid with each switch halfway
