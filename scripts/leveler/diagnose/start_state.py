@@ -62,9 +62,9 @@ def initial_state(run):
     return [h, p2, p1, p3], duty
 
 
-def _counts(events, lo, hi):
-    """For each interval (lo, hi]: how many of the sorted event times lie in it."""
-    return np.searchsorted(events, hi, side="right") - np.searchsorted(events, lo, side="right")
+def _window_counts(t, events, half):
+    """For each time in t: how many of the sorted event times lie within +-half."""
+    return np.searchsorted(events, t + half) - np.searchsorted(events, t - half)
 
 
 def chatter_track(run, commands=("compressor",), signal="p_pipe_pa", trim=False):
@@ -93,10 +93,10 @@ def chatter_track(run, commands=("compressor",), signal="p_pipe_pa", trim=False)
     chatter = np.ones(len(t), dtype=bool)
     for c in cmds:
         t_sw = t[1:][np.diff(np.asarray(c, dtype=int)) != 0]
-        before, after = _counts(t_sw, t - 0.5, t), _counts(t_sw, t, t + 0.5)
-        chatter &= before + after >= CHATTER_SWITCHES
-        if trim:
-            chatter &= (before > 0) & (after > 0)
+        chatter &= _window_counts(t, t_sw, 0.5) >= CHATTER_SWITCHES
+        if trim:    # a switch at or before t, and one after it, within the half second
+            at_or_before = np.searchsorted(t_sw, t, side="right") > np.searchsorted(t_sw, t - 0.5)
+            chatter &= at_or_before & (np.searchsorted(t_sw, t + 0.5) > np.searchsorted(t_sw, t, side="right"))
     if not chatter.any():
         return None
     ok = np.isfinite(p)
