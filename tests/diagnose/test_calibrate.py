@@ -81,42 +81,42 @@ def test_one_value_is_found_from_the_grid(cplant, tmp_path):
     assert ss(found) <= ss(local) * (1.0 + 1e-9)
 
 
-def test_the_held_out_run_tells_alike_values_apart(cplant, tmp_path):
+def test_a_larger_pipe_and_a_larger_spring_are_reported_alike(cplant, tmp_path):
     """The blind test's misset seed 7: a pipe 30 % larger logged at rig rate (20-50 Hz,
-    jittered). On the calibration runs a lower polytropic exponent fits as well as
-    the pipe and the forward selection takes it first (asserted: the case this
-    guards); the pipe alone explains the held-out run better, so the calibration
-    starts again from it (calibrate.held_out_first) and ends on the rig's pipe."""
+    jittered). The spring's volume 1.3 % larger holds the same air at the same
+    pressures, and neither the calibration runs nor the held-out run (steps, no
+    experiment) tell the two apart: the calibration moves one and reports the other
+    as alike, moves nothing else, and a user is told both. (Before the discharge's
+    chatter was replayed by its track, the exponent was chosen first and the
+    held-out run chose the pipe: calibrate.held_out_first, now tested on seed 13.)"""
     spec = next(s for s in bt.family_specs("misset") if s["form"] == "pipe_volume+30%")
     try:
         spec, system, kind, _, _ = bt.form_logs(cplant, str(tmp_path), 7, spec)
-        truth = leveler_config.resolved(os.path.join(str(tmp_path), "rig.ini"))["pipe"]["volume_m3"]
     except leveler_config.ConfigError as e:
         pytest.skip(f"leveler-sim not available: {e}")
     assert (system, kind) == ("900lb", "rig")
     logs = [runs.load_run(os.path.join(str(tmp_path), "logs", f"{n}.csv")) for n in ("cal1", "cal2", "hold")]
     config = cp.config_path("thesis-900lb")
-    space = calibrate.Space(config, leveler_config.resolved(config))
-    _, chosen, _ = calibrate.fit_calibration(calibrate.Calibrated(cplant, space, logs[:2], "auto", str(tmp_path)))
-    names = [n.name for n in space.params]
-    assert names[chosen[0]] != "pipe_volume"
-    said = []
-    rep = calibrate.calibrate(cplant, config, logs[:2], logs[2:], "auto", str(tmp_path), 15.0, progress=said.append)
-    assert any("calibrating from it" in m for m in said)
-    assert rep["kept"] and "pipe_volume" in rep["moved"]
-    p = next(x for x in rep["parameters"] if x["name"] == "pipe_volume")
-    assert p["value"] == pytest.approx(truth, rel=0.05)
-    assert p["interval"][0] <= truth <= p["interval"][1]
-    assert not set(rep["moved"]) & {"polytropic_exponent", "damping_up"}
+    rep = calibrate.calibrate(cplant, config, logs[:2], logs[2:], "auto", str(tmp_path), 15.0, progress=lambda m: None)
+    assert rep["kept"]
+    told = set(rep["moved"]) | {a["name"] for a in rep["alike"]}
+    assert {"pipe_volume", "spring_volume"} <= told
+    assert len(rep["moved"]) == 1 and rep["moved"][0] in ("pipe_volume", "spring_volume")
+    spring = next(x for x in rep["parameters"] if x["name"] == "spring_volume")
+    if spring["moved"]:     # the air of 30 % of the pipe's volume is about 1.4 % of the spring's
+        ratio = 0.3 * leveler_config.resolved(config)["pipe"]["volume_m3"] / spring["config"]
+        assert spring["change_pct"] == pytest.approx(100.0 * ratio, rel=0.5)
 
 
 def test_the_second_calibration_stops_where_the_held_out_run_is_best(cplant, tmp_path):
     """The blind test's misset seed 13: a pipe 30 % larger logged at rig rate. The
-    forward selection takes the polytropic exponent first; the pipe alone explains the
-    held-out run better, and the calibration from it adds the compressor, which lowers
-    the calibration runs' gap and raises the held-out one above the exponent's. The
-    pipe alone, the held-out run's best along that path, is taken: the rig's pipe
-    inside its interval, nothing else moved."""
+    forward selection takes the spring's volume first (its +1.3 % holds the pipe's
+    air); the pipe alone explains the held-out run better (0.246 against 0.257), and
+    the calibration from it adds the compressor, which lowers the calibration runs'
+    gap and not the held-out one. The pipe alone, the held-out run's best along that
+    path, is taken: the rig's pipe within 5 % and inside its interval, nothing else
+    chosen. (Before the discharge's track the exponent came first, and the pipe with
+    the compressor left the held-out run worse than it: the exponent stood.)"""
     spec = next(s for s in bt.family_specs("misset") if s["form"] == "pipe_volume+30%")
     try:
         spec, system, kind, _, _ = bt.form_logs(cplant, str(tmp_path), 13, spec)
@@ -132,6 +132,7 @@ def test_the_second_calibration_stops_where_the_held_out_run_is_best(cplant, tmp
     assert any("the held-out runs are best with pipe_volume" in m for m in said)
     assert rep["kept"] and rep["moved"] == ["pipe_volume"]
     p = next(x for x in rep["parameters"] if x["name"] == "pipe_volume")
+    assert p["value"] == pytest.approx(truth, rel=0.05)
     assert p["interval"][0] <= truth <= p["interval"][1]
     assert [x["name"] for x in rep["parameters"] if x["chosen"]] == ["pipe_volume"]
 

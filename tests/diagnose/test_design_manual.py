@@ -105,7 +105,7 @@ def test_the_blind_test_runs_a_proposed_manual_experiment_on_its_truth(case, cpl
     design.write_schedule(str(case["top"] / "diagnosis" / "experiment.csv"), p)
     d = {"cannot_tell_apart": ["line_delay", "sensor_lag"]}
     verdict = bt.run_experiment(cplant, str(case["top"]), d, "line_delay", truth_params(), SYSTEM, "100Hz", 1,
-                                ["--fast"])
+                                ["--fast"])["effect"]
     run = load_run(str(case["logs"] / "experiment.csv"))
     steps, _ = read_schedule(str(case["top"] / "diagnosis" / "experiment.csv"))
     for k, want in design.requested(run.t_s, steps).items():

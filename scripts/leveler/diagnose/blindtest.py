@@ -326,7 +326,7 @@ def run_experiment(sim, folder, d, case, params, system, kind, seed, extra, spec
     It joins the first held-out run, not replaces it: an experiment that does not
     exercise what the calibration found (a pulse train of the spring valve against
     a vent's Cd) would have the calibration dropped, and the effects judged on the
-    config as given. Returns the new verdict. spec: a case of another family."""
+    config as given. Returns the new diagnosis. spec: a case of another family."""
     logs = os.path.join(folder, "logs")
     steps, end = read_schedule(os.path.join(folder, "diagnosis", "experiment.csv"))
     slot = CASES.index(case) if spec is None else spec["slot"]
@@ -335,9 +335,8 @@ def run_experiment(sim, folder, d, case, params, system, kind, seed, extra, spec
     write_truth_log(sim, os.path.join(logs, "experiment.csv"), rig, system, steps, end, case, params, kind, rng,
                     design.schedule_writes(steps), form_id=None if spec is None else spec["form_id"])
     group = ",".join(x for x in lookalike_set(d) if x in fx.NAMES)     # the set's effects, not none/calibration
-    d2 = diagnose_blind(logs, os.path.join(folder, "diagnosis-experiment"), SYSTEMS[system][0],
-                        list(extra) + ["--effects", group], holdout=("hold", "experiment"))
-    return d2["effect"]
+    return diagnose_blind(logs, os.path.join(folder, "diagnosis-experiment"), SYSTEMS[system][0],
+                          list(extra) + ["--effects", group], holdout=("hold", "experiment"))
 
 
 def run_case(sim, top, seed, case, index, extra, force=(None, None, "step", None), slot=None):
@@ -369,7 +368,7 @@ def run_case(sim, top, seed, case, index, extra, force=(None, None, "step", None
         r["both_top_two"] = set(fx.parts(case)) == set(r["top_two"])
         return r
     if r["lookalikes"]:
-        r["after_experiment"] = (run_experiment(sim, folder, d, case, params, system, kind, seed, extra)
+        r["after_experiment"] = (run_experiment(sim, folder, d, case, params, system, kind, seed, extra)["effect"]
                                  if case in r["lookalikes"] else "truth not among them")
         r["verdict"] = r["after_experiment"]
     return r
@@ -460,8 +459,12 @@ def run_form_case(sim, top, seed, spec, index, extra, force=(None, None, "step",
     truth_in = [spec["truth"]] if spec["truth"] in fx.NAMES else (["calibration", "none"] if spec["family"] ==
                                                                    "misset" else [])
     if r["lookalikes"] and truth_in:
-        r["after_experiment"] = (run_experiment(sim, folder, d, effect, params, system, kind, seed, extra, spec)
-                                 if set(truth_in) & set(r["lookalikes"]) else "truth not among them")
+        r["after_experiment"] = "truth not among them"
+        if set(truth_in) & set(r["lookalikes"]):
+            d2 = run_experiment(sim, folder, d, effect, params, system, kind, seed, extra, spec)
+            r["after_experiment"] = d2["effect"]
+            if "param" in r:    # the answer is the one after the experiment: its calibration too
+                r["param_named"] = param_named(_calibration_names(d2.get("calibration")), spec["param"])
         r["verdict"] = r["after_experiment"]
     r["right"] = case_right(r)
     return r
