@@ -95,8 +95,8 @@ def chatter_track(run, commands=("compressor",), signal="p_pipe_pa", trim=False)
         t_sw = t[1:][np.diff(np.asarray(c, dtype=int)) != 0]
         chatter &= _window_counts(t, t_sw, 0.5) >= CHATTER_SWITCHES
         if trim:    # a switch at or before t, and one after it, within the half second
-            at_or_before = np.searchsorted(t_sw, t, side="right") > np.searchsorted(t_sw, t - 0.5)
-            chatter &= at_or_before & (np.searchsorted(t_sw, t + 0.5) > np.searchsorted(t_sw, t, side="right"))
+            upto = np.searchsorted(t_sw, t, side="right")
+            chatter &= (upto > np.searchsorted(t_sw, t - 0.5)) & (np.searchsorted(t_sw, t + 0.5) > upto)
     if not chatter.any():
         return None
     ok = np.isfinite(p)
