@@ -6,9 +6,11 @@ version (engine.Engine.cached)."""
 import collections
 import glob
 import os
+from dataclasses import replace
 
 import numpy as np
 
+from . import edges
 from . import effects as fx
 from .errors import DiagnoseInputError
 from .model import CLOSED_LOOP, Simulator, Trace
@@ -212,20 +214,53 @@ class CPlant(Simulator):
         return self._replay_fine(config, run, kind, values, init, chatter_track(run),
                                  chatter_track(run, DISCHARGE, "p_spring_pa", trim=True))
 
-    def _replay_fine(self, config, run, kind, values, init, track=None, track2=None):
-        """A coarse or jittered log: replay on the 10 ms grid with each switch halfway
-        between the samples that bracket it, read back at the log's times; where a
-        command chatters, regulated to its track instead (chatter_track)."""
+    def _fine_inputs(self, run, track, track2):
+        """A coarse log on the 10 ms replay grid: the grid, each tick's nearest sample,
+        the commands switched halfway between samples (or run.fine_commands, placed),
+        and the chatter tracks at the ticks."""
         rel = run.t_s - run.t_s[0]
         grid = np.round(np.arange(0.0, rel[-1] + FINE_TICK_S / 2, FINE_TICK_S), 6)
         idx = nearest_index(rel, grid)
-        cmds = {k: np.asarray(v)[idx] for k, v in run.commands.items()}
+        placed = getattr(run, "fine_commands", None)
+        if placed and all(len(v) >= len(grid) for v in placed.values()):    # a cut run keeps its start
+            cmds = {k: np.asarray(v[:len(grid)]) for k, v in placed.items()}
+        else:
+            cmds = {k: np.asarray(v)[idx] for k, v in run.commands.items()}
         # the nearest sample's (already smoothed) value
         track, track2 = (None if x is None else x[idx] for x in (track, track2))
+        return rel, grid, idx, cmds, track, track2
+
+    def _replay_fine(self, config, run, kind, values, init, track=None, track2=None):
+        """A coarse or jittered log: replay on the 10 ms grid with each switch halfway
+        between the samples that bracket it (or where place_switches put it), read
+        back at the log's times; where a command chatters, regulated to its track
+        instead (chatter_track)."""
+        rel, grid, idx, cmds, track, track2 = self._fine_inputs(run, track, track2)
         tr = self._call(config, grid, np.asarray(run.load_n)[idx], cmds, kind, values, init, track, track2=track2)
         back = nearest_index(grid, rel)
         return Trace(run.t_s, {k: np.interp(rel, grid, v) for k, v in tr.signals.items()},
                      {k: v[back] for k, v in tr.commands.items()})
+
+    def placed(self, config, run):
+        """The run with fine_commands: its logged switches placed within their
+        brackets (edges.py) on the config as given. A tick-rate log, or one without
+        commands, is returned as it is."""
+        if is_fine(run.t_s) or not run.has_commands or len(run.t_s) < 3:
+            return run
+        run = replace(run, fine_commands=None)
+        track, track2 = chatter_track(run), chatter_track(run, DISCHARGE, "p_spring_pa", trim=True)
+        rel, grid, idx, cmds, tk, tk2 = self._fine_inputs(run, track, track2)
+        load, init = np.asarray(run.load_n)[idx], self.start_state(config, run)
+
+        def replay(c, end):
+            cut = lambda x: None if x is None else x[:end]
+            return self._call(config, grid[:end], load[:end], c, 0, [], init, cut(tk), track2=cut(tk2)).signals
+
+        def skip(k, g):     # regulated to a track there
+            on = tk if k == "compressor" else tk2 if k in DISCHARGE else None
+            return on is not None and bool(np.isfinite(on[g]))
+        groups = edges.switch_groups(rel, run.commands, grid, skip)
+        return replace(run, fine_commands=edges.place_switches(replay, rel, run.signals, cmds, grid, groups))
 
     def _closed_loop(self, config, t_s, load_n, kind, values, init, writes=None, **where):
         """The firmware ticks every 10 ms: simulate on that grid from the log's first

@@ -20,6 +20,7 @@ from .confidence import leaves_much
 from .context import Ask, Basis, Verdict
 from .evidence_figures import PublishedFigures
 from .evidence_runs import RunLogs
+from .model import REPLAY
 
 
 def evidence_of(runs):
@@ -30,12 +31,22 @@ def evidence_of(runs):
 def diagnose(spec, sim, config, calib, holdout, mode="auto", candidates=None, jobs=None,
              progress=print, fit_opts=None, design_pair=None):
     """Returns (result dict for diagnosis.json, traces for the report)."""
+    calib, holdout = placed(sim, config, calib, mode), placed(sim, config, holdout, mode)
     given = list(calib) + list(holdout)
     evidence = evidence_of(given)
     ask = Ask(spec, sim, config, mode, candidates or fx.NAMES, jobs, progress, fit_opts, design_pair,
               evidence.resolution_s(given))
     with tempfile.TemporaryDirectory(prefix="leveler-calibration-") as folder:
         return _diagnose(ask, evidence, calib, holdout, folder)
+
+
+def placed(sim, config, runs, mode):
+    """Coarse logs replayed open loop, with each switch placed within the samples
+    that bracket it on the config as given (CPlant.placed, edges.py)."""
+    if not hasattr(sim, "placed"):
+        return list(runs)
+    return [sim.placed(config, r) if getattr(r, "has_commands", False) and fit.choose_mode(r, mode) == REPLAY
+            else r for r in runs]
 
 
 def _diagnose(ask, evidence, calib, holdout, folder):

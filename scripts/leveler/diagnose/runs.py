@@ -35,6 +35,9 @@ class Run:
     # the start the simulation takes moved by (height m, P2 Pa): what the log's
     # quiet start cannot resolve (fit.Problem's start_shifts, design's knife edge)
     start_shift: tuple = (0.0, 0.0)
+    # a coarse log's commands on the 10 ms replay grid, each switch placed within
+    # the samples that bracket it (CPlant.placed, edges.py); None: halfway
+    fine_commands: dict = None
 
     @property
     def name(self):
