@@ -10,6 +10,7 @@ import pytest
 from conftest import LB, thesis_schedule
 from leveler.diagnose import blindtest as bt
 from leveler.diagnose import design, runs, separability
+from leveler.diagnose.cplant import nearest_index
 from leveler.diagnose.start_state import DISCHARGE, chatter_track, initial_state
 from leveler.diagnose.fit import Problem, cost_to_gap, noise_gap, run_residual, start_shifts
 from leveler.diagnose.model import REPLAY
@@ -19,6 +20,7 @@ CONFIG = "thesis-900lb"
 
 
 ACC = "thesis-900lb-diaphragm-90psig"
+ACC_NOMINAL = bt.SYSTEMS["accumulator"][0]
 
 
 def truth_run(cplant, omega0):
@@ -92,6 +94,60 @@ def test_rig_logs_whose_discharge_chatters_replay_nearer_their_truth(cplant, tmp
     assert len(tracked) >= 8
     assert np.median(tracked) < np.median(logged) and max(tracked) < max(logged), (tracked, logged)
     assert np.median(tracked) < 2.0 * np.median(noise)
+
+
+def acc_rig_logs(cplant, folder, seeds, spec):
+    """Accumulator rig logs (20-50 Hz, jittered) of a mis-set spec: (rig config, run) each."""
+    out = []
+    for seed in seeds:
+        _, system, kind, _, _ = bt.form_logs(cplant, str(folder / str(seed)), seed, spec,
+                                             force=("accumulator", "rig", "step", None))
+        assert (system, kind) == ("accumulator", "rig")
+        out += [(str(folder / str(seed) / "rig.ini"), runs.load_run(str(folder / str(seed) / "logs" / f"{n}.csv")))
+                for n in ("cal1", "cal2", "hold")]
+    return out
+
+
+def replay_gap(cplant, config, run):
+    return cost_to_gap(run_residual(run, cplant.simulate(config, run, None, {}, REPLAY)), 1)
+
+
+def test_accumulator_rig_logs_replay_to_their_noise_with_each_switch_placed(cplant, tmp_path):
+    """Effect-free accumulator rig logs (seeds 20-24, no blind-test case among them).
+    Their switches halfway between samples leave the rig's own config far above the
+    logs' noise (10 ms on the accumulator's burst is more air than the noise shows,
+    and the hysteresis keeps it). Placed within their brackets on that config
+    (edges.py), the replay comes down to the noise a perfect model leaves, and no
+    switch leaves the samples that bracket it."""
+    nominal = next(s for s in bt.family_specs("misset") if s["form"] == "pipe_volume+30%")
+    halfway, placed, noise = [], [], []
+    for rig, run in acc_rig_logs(cplant, tmp_path, range(20, 25), dict(nominal, change=1.0)):
+        moved = cplant.placed(rig, run)
+        halfway.append(replay_gap(cplant, rig, run))
+        placed.append(replay_gap(cplant, rig, moved))
+        noise.append(noise_gap([run]))
+        rel = run.t_s - run.t_s[0]
+        grid = np.round(np.arange(0.0, rel[-1] + 0.005, 0.01), 6)
+        for k, c in run.commands.items():
+            c = np.asarray(c, dtype=int)
+            brackets = [(rel[j - 1], rel[j]) for j in np.nonzero(np.diff(c))[0] + 1]
+            off = grid[np.asarray(moved.fine_commands[k]) != c[nearest_index(rel, grid)]]
+            assert all(any(a - 1e-9 < t <= b + 1e-9 for a, b in brackets) for t in off), (run.path, k)
+    assert np.median(halfway) > 2.0 * np.median(noise), (halfway, noise)
+    assert np.median(placed) < 1.5 * np.median(noise), (placed, noise)
+
+
+def test_placing_the_switches_keeps_a_mis_set_value_in_sight(cplant, tmp_path):
+    """Each mis-set value of the blind test on accumulator rig logs (seed 20): the
+    switches are placed on the config as given, so they could take up some of the
+    value's effect. They do not hide it: the config as given leaves at least twice the
+    gap of the rig's own config on every value, with the same placed switches."""
+    for spec in bt.family_specs("misset"):
+        ratios = []
+        for rig, run in acc_rig_logs(cplant, tmp_path / spec["form"], [20], spec):
+            moved = cplant.placed(ACC_NOMINAL, run)
+            ratios.append(replay_gap(cplant, ACC_NOMINAL, moved) / replay_gap(cplant, rig, moved))
+        assert np.median(ratios) > 2.0, (spec["form"], ratios)
 
 
 def test_a_leak_is_told_apart_from_friction_and_the_design_sees_no_difference_in_twins(cplant):
