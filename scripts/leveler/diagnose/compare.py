@@ -65,7 +65,12 @@ def _print(a, result):
 
 
 def compare(a, sim):
+    from .pipeline import placed
+    # a coarse log's switches placed within its samples on the config the diagnosis
+    # started from (--against, else --config), as the diagnosis places them
     logs = [runs_mod.load_run(p) for p in a.logs]
+    sim.check_config(a.against or a.config)
+    logs = placed(sim, a.against or a.config, logs, a.mode)
     traces, g, where = model_gap(sim, a.config, logs, a.mode)
     result = {"version": __version__, "config": a.config, "logs": a.logs, "gap": g, "where": where}
     other = None
