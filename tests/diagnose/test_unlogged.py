@@ -138,6 +138,22 @@ def test_accumulator_rig_logs_replay_to_their_noise_with_each_switch_placed(cpla
     assert np.median(placed) < 2.0 * np.median(noise), (placed, noise)
 
 
+def test_a_log_without_the_valves_pressures_keeps_its_switches_halfway(cplant, tmp_path):
+    """Without P1 and P3 nothing tells a bracket's ticks apart: the switches stay
+    where the halfway rule puts them, and the replay is the halfway replay."""
+    nominal = next(s for s in bt.family_specs("misset") if s["form"] == "pipe_volume+30%")
+    rig, run = acc_rig_logs(cplant, tmp_path, [20], dict(nominal, change=1.0))[0]
+    blind = replace(run, signals=dict(run.signals, p_pipe_pa=np.full(len(run.t_s), np.nan),
+                                      p_acc_pa=np.full(len(run.t_s), np.nan)))
+    moved = cplant.placed(rig, blind)
+    rel = run.t_s - run.t_s[0]
+    idx = nearest_index(rel, np.round(np.arange(0.0, rel[-1] + 0.005, 0.01), 6))
+    for k, c in run.commands.items():
+        assert np.array_equal(moved.fine_commands[k], np.asarray(c)[idx]), k
+    assert any(not np.array_equal(cplant.placed(rig, run).fine_commands[k], np.asarray(c)[idx])
+               for k, c in run.commands.items())     # with them, some do move
+
+
 def test_placing_the_switches_keeps_a_mis_set_value_in_sight(cplant, tmp_path):
     """Each mis-set value of the blind test on accumulator rig logs (seed 20): the
     switches are placed on the config as given, so they could take up some of the

@@ -64,6 +64,8 @@ def place_switches(replay, rel, signals, fine_cmds, grid, groups, window_s=PLACE
     rel (seconds from its first sample)."""
     cmds = {k: np.array(v) for k, v in fine_cmds.items()}
     sig = [s for s in SCALES if s in signals and np.isfinite(signals[s]).mean() > 0.5 and s in PLACE_SIGNALS]
+    if not sig:         # neither pressure logged: nothing to place by, halfway stands
+        return cmds
     for j in sorted(groups):
         ta, tb = rel[j - 1], rel[j]
         ticks = np.nonzero((grid > ta - 1e-9) & (grid <= tb + 1e-9))[0]
@@ -71,14 +73,23 @@ def place_switches(replay, rel, signals, fine_cmds, grid, groups, window_s=PLACE
             continue
         end = int(min(len(grid), np.searchsorted(grid, tb + window_s) + 1))
         seen = (rel > ta) & (rel <= tb + window_s)
-        best = (np.inf, ticks[-1])
+        costs = []
         for g in ticks:
             trial = {k: v[:end].copy() for k, v in cmds.items()}
             _set(trial, groups[j], ticks[0], ticks[-1], g)
-            out = replay(trial, end)
-            cost = sum(float(np.nansum(((np.interp(rel[seen], grid[:end], out[s]) - signals[s][seen]) / SCALES[s]) ** 2))
-                       for s in sig)
-            if cost < best[0]:
-                best = (cost, g)
-        _set(cmds, groups[j], ticks[0], ticks[-1], best[1])
+            costs.append(_cost(replay(trial, end), grid[:end], rel[seen], {s: signals[s][seen] for s in sig}))
+        if max(costs) == min(costs):    # nothing logged tells the ticks apart: halfway stands
+            continue
+        _set(cmds, groups[j], ticks[0], ticks[-1], ticks[int(np.argmin(costs))])
     return cmds
+
+
+def _cost(out, grid, t, logged):
+    """Sum of squares of the plant's signals (out, on grid) against the logged ones at
+    t, in gap.SCALES units; a sample the plant could not produce costs 1e3 units."""
+    total = 0.0
+    for s, v in logged.items():
+        r = (np.interp(t, grid, out[s]) - v) / SCALES[s]
+        r = np.where(np.isfinite(v), np.where(np.isfinite(r), r, 1e3), 0.0)
+        total += float(np.sum(r * r))
+    return total
