@@ -3,6 +3,7 @@
 separate what the verdict cannot (design.py)."""
 from . import confidence
 from . import design
+from . import edges
 from . import effects as fx
 from . import fit
 from . import separability
@@ -87,7 +88,8 @@ def confidence_step(ask, evidence, basis, verdict, look, calibration, cal_config
                              look["lookalikes"] and look["lookalikes"]["group"], look["experiment"],
                              verdict.finding, rival, alike_names(calibration), moved_parts(calibration),
                              basis.threshold, unmoved=bool(calibration and calibration.get("kept") and
-                                                           not calibration.get("moved")))
+                                                           not calibration.get("moved")),
+                             resolved=not any(edges.floor_above_noise(r) for r in basis.holdout))
     designs = evidence.designs_experiments
     if designs and sure["set"][1:] == ["none"] and not look["experiment"] and not ask.design_pair:
         hint = next(r for r in basis.ranking if r["effect"] == sure["set"][0])     # confidence.hinted

@@ -125,7 +125,7 @@ def hinted(effects, ranking, threshold, unexplained_finding=None):
 
 
 def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained_finding, rival=None,
-           alike_values=None, moved=None, threshold=None, unmoved=False):
+           alike_values=None, moved=None, threshold=None, unmoved=False, resolved=True):
     """{level, probability, set, why, experiment}. effects: the named effect(s)
     ([] for none); ranking: candidates by held-out shrink over the calibrated model;
     rival: an effect that, on the config as given, explains the held-out runs as
@@ -134,7 +134,9 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
     as its first ([name, ...], certainty.alike_names); moved: the kept calibration's
     moved values by part of the rig ({section: [name, ...]}, certainty.moved_parts);
     threshold: the share (%) of the held-out gap an effect must close (hinted);
-    unmoved: a calibration was kept with no value moved materially."""
+    unmoved: a calibration was kept with no value moved materially; resolved: False
+    when the held-out logs replay above their noise even with the right model
+    (edges.floor_above_noise): there a quiet gap is no proof of no effect."""
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
     margin = best["shrink_pct"] - runner["shrink_pct"] if runner else 100.0
@@ -165,6 +167,10 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
         level, cset = "likely", ["none"] + [r["effect"] for r in ranking[:2]]
         why = ("the calibrated model is within the logs' noise, but only through values each moved less than "
                "the report calls a change: a weak effect may leave what they closed")
+    elif not effects and not resolved and noise > 0 and cal_gap <= NONE_QUIET * noise:
+        level, cset = "likely", ["none"] + [r["effect"] for r in ranking[:2]]
+        why = ("the calibrated model is within the logs' noise, but on rig-rate logs with the accumulator's "
+               "bursts even the right model replays no closer: a weak effect may hide there")
     elif not effects:
         quiet = noise > 0 and cal_gap <= NONE_QUIET * noise
         level = "sure" if quiet else "likely"
