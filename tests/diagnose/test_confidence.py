@@ -123,7 +123,7 @@ def test_none_above_the_noise_is_likely_whatever_moved():
 def test_none_within_the_noise_is_only_likely_where_even_the_right_model_is_above_it():
     # offform area_lobe seed 16 (accumulator rig log, the area off by about 3 %): the
     # config as given left 1.30 noise gaps, and the right model leaves a median 1.6
-    # on such logs (edges.floor_above_noise): `none` was "sure" and wrong
+    # on such logs (cplant.floor_above_noise): `none` was "sure" and wrong
     a = confidence.assess([], RANKING, 1.30, 1.0, None, None, None, moved={}, resolved=False)
     assert a["level"] == "likely" and a["set"][0] == "none" and "accumulator" in a["why"]
     assert confidence.assess([], RANKING, 1.30, 1.0, None, None, None, moved={})["level"] == "sure"

@@ -9,8 +9,8 @@ import pytest
 
 from conftest import LB, thesis_schedule
 from leveler.diagnose import blindtest as bt
-from leveler.diagnose import design, edges, runs, separability
-from leveler.diagnose.cplant import nearest_index
+from leveler.diagnose import design, runs, separability
+from leveler.diagnose.cplant import floor_above_noise, nearest_index
 from leveler.diagnose.start_state import DISCHARGE, chatter_track, initial_state
 from leveler.diagnose.fit import Problem, cost_to_gap, noise_gap, run_residual, start_shifts
 from leveler.diagnose.model import REPLAY
@@ -155,17 +155,17 @@ def test_a_log_without_the_valves_pressures_keeps_its_switches_halfway(cplant, t
 
 
 def test_only_rig_rate_logs_with_the_accumulators_bursts_replay_above_their_noise(cplant, tmp_path):
-    """edges.floor_above_noise: an accumulator rig log is; the same run at the tick,
+    """floor_above_noise: an accumulator rig log is; the same run at the tick,
     and a 900 lb rig log (no accumulator valve switching), are not."""
     nominal = next(s for s in bt.family_specs("misset") if s["form"] == "pipe_volume+30%")
     _, run = acc_rig_logs(cplant, tmp_path, [20], dict(nominal, change=1.0))[0]
-    assert edges.floor_above_noise(run)
+    assert floor_above_noise(run)
     t, load = thesis_schedule(end=20.0)
     tr = cplant._closed_loop(ACC, t, load, 0, [], [np.nan] * 4 + [0.0])
-    assert not edges.floor_above_noise(Run("tick.csv", t, tr.signals, load, tr.commands))
+    assert not floor_above_noise(Run("tick.csv", t, tr.signals, load, tr.commands))
     folder = tmp_path / "900"
     bt.form_logs(cplant, str(folder), 20, dict(nominal, change=1.0), force=(None, "rig", "step", None))
-    assert not edges.floor_above_noise(runs.load_run(str(folder / "logs" / "cal1.csv")))
+    assert not floor_above_noise(runs.load_run(str(folder / "logs" / "cal1.csv")))
 
 
 def test_placing_the_switches_keeps_a_mis_set_value_in_sight(cplant, tmp_path):

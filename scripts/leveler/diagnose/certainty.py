@@ -3,11 +3,11 @@
 separate what the verdict cannot (design.py)."""
 from . import confidence
 from . import design
-from . import edges
 from . import effects as fx
 from . import fit
 from . import separability
 from .candidates import values_of
+from .cplant import floor_above_noise
 
 
 def lookalike_step(problem, ranking, threshold, named, progress, design_pair=None):
@@ -89,7 +89,7 @@ def confidence_step(ask, evidence, basis, verdict, look, calibration, cal_config
                              verdict.finding, rival, alike_names(calibration), moved_parts(calibration),
                              basis.threshold, unmoved=bool(calibration and calibration.get("kept") and
                                                            not calibration.get("moved")),
-                             resolved=not any(edges.floor_above_noise(r) for r in basis.holdout))
+                             resolved=not any(floor_above_noise(r) for r in basis.holdout))
     designs = evidence.designs_experiments
     if designs and sure["set"][1:] == ["none"] and not look["experiment"] and not ask.design_pair:
         hint = next(r for r in basis.ranking if r["effect"] == sure["set"][0])     # confidence.hinted

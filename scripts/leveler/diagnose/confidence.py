@@ -136,7 +136,7 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
     threshold: the share (%) of the held-out gap an effect must close (hinted);
     unmoved: a calibration was kept with no value moved materially; resolved: False
     when the held-out logs replay above their noise even with the right model
-    (edges.floor_above_noise): there a quiet gap is no proof of no effect."""
+    (cplant.floor_above_noise): there a quiet gap is no proof of no effect."""
     best = ranking[0]
     runner = ranking[1] if len(ranking) > 1 else None
     margin = best["shrink_pct"] - runner["shrink_pct"] if runner else 100.0

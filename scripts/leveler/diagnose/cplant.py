@@ -66,6 +66,17 @@ def is_fine(t_s, tick=FINE_TICK_S):
     return len(rel) > 1 and np.allclose(np.diff(rel), tick, atol=1e-6)
 
 
+def floor_above_noise(run):
+    """A log slower than the tick whose accumulator valve switches: there even the
+    rig's own config, its switches placed (edges.py), replays to a median 1.6 times
+    the logs' noise (0.47 against 0.29 on 30 effect-free logs; 900 lb rig logs 1.2
+    times), so a gap within a noise gap or so does not say no effect is there."""
+    acc = run.commands.get("acc_valve") if getattr(run, "commands", None) else None
+    t = getattr(run, "t_s", None)
+    return bool(t is not None and not is_fine(np.asarray(t)) and acc is not None
+                and np.any(np.diff(np.asarray(acc, dtype=int)) != 0))
+
+
 
 class CPlant(Simulator):
     honours_start_shift = True

@@ -35,18 +35,6 @@ from .gap import SCALES
 PLACE_WINDOW_S = 0.3
 PLACE_SIGNALS = ("p_pipe_pa", "p_acc_pa")
 PLACED = ("spring_valve", "vent_valve", "acc_valve")
-TICK_S = 0.01
-
-
-def floor_above_noise(run):
-    """A log slower than the tick whose accumulator valve switches: there even the
-    rig's own config, its switches placed, replays to a median 1.6 times the logs'
-    noise (0.47 against 0.29 on the 30 effect-free logs above; 900 lb rig logs 1.2
-    times), so a gap within a noise gap or so does not say no effect is there."""
-    acc = run.commands.get("acc_valve") if getattr(run, "commands", None) else None
-    t = getattr(run, "t_s", None)
-    coarse = t is not None and len(t) > 1 and float(np.median(np.diff(t))) > 1.5 * TICK_S
-    return bool(coarse and acc is not None and np.any(np.diff(np.asarray(acc, dtype=int)) != 0))
 
 
 def switch_groups(rel, commands, grid, skip):
