@@ -22,7 +22,8 @@ compressor's own values and effects show (placed by P1 too, a hot inlet on a
 900 lb rig log, offform seed 16, lost its lead over the calibration). The
 switches seen at one sample are placed together: the firmware switches them in
 one tick (the accumulator's valve with the spring's). Placement never leaves
-the bracket. On the same kind of logs with each of the blind test's eight
+the bracket, and is done only on logs whose accumulator valve switches
+(CPlant.placed). On the same kind of logs with each of the blind test's eight
 mis-set values (seeds 20-24, 120 logs), the config as given leaves a median 8.5
 times the gap the rig's own config leaves (6.8 halfway); placed by the height
 and all pressures over 1 s, the floor was 0.30 but that ratio fell to 5.8, the
