@@ -272,9 +272,8 @@ class CPlant(Simulator):
             cut = lambda x: None if x is None else x[:end]
             return self._call(config, grid[:end], load[:end], c, 0, [], init, cut(tk), track2=cut(tk2)).signals
 
-        def skip(k, g):     # regulated to a track there
-            on = tk if k == "compressor" else tk2 if k in DISCHARGE else None
-            return on is not None and bool(np.isfinite(on[g]))
+        def skip(k, g):     # the discharge regulated to its track there (the compressor is never placed)
+            return k in DISCHARGE and tk2 is not None and bool(np.isfinite(tk2[g]))
         groups = edges.switch_groups(rel, run.commands, grid, skip)
         return replace(run, fine_commands=edges.place_switches(replay, rel, run.signals, cmds, grid, groups))
 

@@ -64,7 +64,7 @@ def place_switches(replay, rel, signals, fine_cmds, grid, groups, window_s=PLACE
     replay(cmds, end): the plant's signals on grid[:end]; signals: the log's, at
     rel (seconds from its first sample)."""
     cmds = {k: np.array(v) for k, v in fine_cmds.items()}
-    sig = [s for s in SCALES if s in signals and np.isfinite(signals[s]).mean() > 0.5 and s in PLACE_SIGNALS]
+    sig = [s for s in PLACE_SIGNALS if s in signals and np.isfinite(signals[s]).mean() > 0.5]
     if not sig:         # neither pressure logged: nothing to place by, halfway stands
         return cmds
     for j in sorted(groups):
