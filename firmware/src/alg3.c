@@ -115,6 +115,8 @@ static void start_move(leveler_alg3 *a, int8_t dir, int64_t off_um, uint32_t now
     a->burst_ms = !a->retry ? (uint16_t)LEVELER_ALG3_BURST_MS
                             : (uint16_t)(a->burst_ms >= LEVELER_ALG3_BURST_MAX_MS / 2u ? LEVELER_ALG3_BURST_MAX_MS
                                                                                        : 2u * a->burst_ms);
+    a->assist = false;
+    a->move_from_um = leveler_alg3_height_um(&a->filter);
     a->retry = false;
     a->out_dir = 0; /* the departure is being dealt with: a new one must be seen afresh */
     a->out_area_um_ms = 0;
@@ -191,12 +193,30 @@ static bool probe_done(const leveler_alg3 *a, bool up)
     return early || moved > LEVELER_ALG3_PROBE_REACH_UM || a->watch.motion == (up ? 1 : -1);
 }
 
+/* A fill the compressor alone has not broken away in LEVELER_ALG3_ASSIST_MS draws on the accumulator
+ * too: the hysteresis gap, not the distance outside the band, sets the air a fill needs (a small drop
+ * can sit a whole gap under the line). Only for the first half of the way to a line it knows or
+ * estimates (as a probe does): the break-away comes on the compressor alone, with a small excess,
+ * even when the line lies lower than estimated (the rate sees a break-away ~150 ms late, a heavily
+ * damped platform's creep later still). Never in bursts or a probe. */
+static bool assist(const leveler_alg3 *a, const leveler_settings *set, bool up, int32_t p_spring_pa, int32_t line,
+                   uint32_t now_ms)
+{
+    if (!up || a->probe != LEVELER_ALG3_PROBE_NONE || a->bursting || a->watch.motion == 1 ||
+        now_ms - a->phase_start_ms < LEVELER_ALG3_ASSIST_MS ||
+        leveler_alg3_moved_um(&a->filter, a->move_from_um, true) >= LEVELER_ALG3_ASSIST_MOVED_UM) {
+        return false; /* a creep up slower than the rate's motion is a break-away too */
+    }
+    return (int64_t)line - p_spring_pa > set->alg3_gap_pa / 2; /* no line (0): never */
+}
+
 /* Filling or venting: close when leveler_alg3_close_now() says so, or a burst is done (a probe: probe_done). */
 static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int32_t p_spring_pa, uint32_t now_ms)
 {
     bool up = a->phase == LEVELER_ALG3_FILLING;
     int32_t line = leveler_alg3_line_estimate(&a->watch.lines, set, up, h);
     bool burst = burst_done(a, up, p_spring_pa, line, now_ms);
+    a->assist = assist(a, set, up, p_spring_pa, line, now_ms);
     /* the line broke away from in this move is the present load's: its coast needs no stretch */
     bool sure = a->watch.lines.line_fresh;
     bool done = a->probe != LEVELER_ALG3_PROBE_NONE ? probe_done(a, up)
@@ -282,7 +302,8 @@ static void phase_outputs(leveler_alg3 *a, const leveler_settings *set, int32_t 
     if (a->phase == LEVELER_ALG3_FILLING) {
         out->compressor = true;
         out->spring_valve = true;
-        out->acc_valve = acc && a->use_acc && (int64_t)p_acc_pa > (int64_t)p_spring_pa + LEVELER_ALG3_ACC_HELP_PA;
+        out->acc_valve =
+            acc && (a->use_acc || a->assist) && (int64_t)p_acc_pa > (int64_t)p_spring_pa + LEVELER_ALG3_ACC_HELP_PA;
         return;
     }
     if (a->phase == LEVELER_ALG3_VENTING) {

@@ -318,6 +318,67 @@ static void test_accumulator_duties(void **state)
     assert_false(out.acc_valve);
 }
 
+/* Ticks of a fill below the band (P2 held, the accumulator full) until `ms` into the move; false
+ * once the accumulator valve was seen open. rise_um: how far the height creeps up (at a steady rate
+ * over the first 3/4 of ASSIST_MS, then held). */
+static bool fill_without_acc(int32_t h0, int32_t p2, unsigned ms, int32_t rise_um)
+{
+    uint32_t start = 0;
+    for (unsigned i = 0; i < 1000 && a.phase != LEVELER_ALG3_FILLING; i++) {
+        tick3(h0, p2, set.acc_charge_max_pa);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    start = now;
+    while (now - start < ms) {
+        uint32_t t = now - start, creep_ms = LEVELER_ALG3_ASSIST_MS * 3u / 4u;
+        int32_t h = h0 + (int32_t)((int64_t)rise_um * (t < creep_ms ? t : creep_ms) / creep_ms);
+        tick3(h, p2, set.acc_charge_max_pa);
+        if (out.acc_valve) {
+            return false;
+        }
+        assert_true(out.compressor && out.spring_valve); /* nothing closed it */
+    }
+    return true;
+}
+
+/* A departure too small for the accumulator at the start (0.2 in), but P2 a whole gap under the
+ * known up line: after ASSIST_MS on the compressor alone the accumulator helps while P2 is more than
+ * half the learnt gap under the line; not when the platform has crept up ASSIST_MOVED_UM, nor
+ * without a line. */
+static void test_stalled_fill_draws_on_accumulator(void **state)
+{
+    (void)state;
+    int32_t h0 = LOWER_UM - 5000;
+    set.alg3_accumulator = 1;
+    set.alg3_up_pa = P2_PA + 80000;
+    a.watch.lines.lines_valid = true;
+    assert_true(fill_without_acc(h0, P2_PA, LEVELER_ALG3_ASSIST_MS - 20, 0));
+    tick3(h0, P2_PA, set.acc_charge_max_pa);
+    tick3(h0, P2_PA, set.acc_charge_max_pa);
+    assert_true(out.compressor && out.spring_valve && out.acc_valve);
+    int32_t line = leveler_alg3_line_estimate(&a.watch.lines, &set, true, h0);
+    int32_t expect = P2_PA + 80000 + (int32_t)lround((h0 - TARGET_UM) / 1000.0 * set.alg3_line_slope_pa_per_mm);
+    assert_in_range(line, expect - 1, expect + 1); /* the learnt line along the slope from the target */
+    for (unsigned i = 0; i < 100; i++) { /* still more than half the gap under the line */
+        tick3(h0, line - set.alg3_gap_pa / 2 - 1000, set.acc_charge_max_pa);
+    }
+    assert_true(out.compressor && out.spring_valve && out.acc_valve);
+    for (unsigned i = 0; i < 100; i++) { /* the second half, and the break-away, on the compressor */
+        tick3(h0, line - set.alg3_gap_pa / 2 + 1000, set.acc_charge_max_pa);
+    }
+    assert_true(out.compressor && out.spring_valve && !out.acc_valve);
+
+    setup(NULL); /* crept up 1.2 mm in 1.5 s, slower than the rate calls moving */
+    set.alg3_accumulator = 1;
+    set.alg3_up_pa = P2_PA + 80000;
+    a.watch.lines.lines_valid = true;
+    assert_true(fill_without_acc(h0, P2_PA, LEVELER_ALG3_ASSIST_MS + 500, LEVELER_ALG3_ASSIST_MOVED_UM + 200));
+
+    setup(NULL); /* no line known or estimated */
+    set.alg3_accumulator = 1;
+    assert_true(fill_without_acc(h0, P2_PA, 3 * LEVELER_ALG3_ASSIST_MS, 0));
+}
+
 /* A recharge under way goes on while the platform reads just outside the band
  * (sensor noise on the band's edge: a departure not yet confirmed), where it
  * would not start; a move that begins ends it, and idle after the move does not
@@ -713,6 +774,7 @@ int main(void)
         cmocka_unit_test_setup(test_close_rule_against_double, setup),
         cmocka_unit_test_setup(test_filter_against_double, setup),
         cmocka_unit_test_setup(test_saturation, setup),
+        cmocka_unit_test_setup(test_stalled_fill_draws_on_accumulator, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -70,7 +70,10 @@ typedef enum {
 #define LEVELER_ALG3_FINE_UM 2540          /* a departure under 0.1 in is corrected in bursts */
 #define LEVELER_ALG3_BURST_MS 100u        /* the first burst of a fine move */
 #define LEVELER_ALG3_BURST_MAX_MS 1600u   /* a burst that moved nothing doubles the next, up to this */
-#define LEVELER_ALG3_ACC_MIN_UM 12700     /* the accumulator helps only departures beyond 0.5 in (or fast ones) */
+#define LEVELER_ALG3_ACC_MIN_UM 12700     /* the accumulator helps departures beyond 0.5 in (or fast ones) ... */
+#define LEVELER_ALG3_ASSIST_MS 2000u      /* ... and the first half of the gap of any fill the compressor alone
+                                           * has not broken away in 2 s */
+#define LEVELER_ALG3_ASSIST_MOVED_UM 1000 /* a fill that rose this far (above sensor noise) has broken away */
 #define LEVELER_ALG3_BURST_ZONE_PA 3000   /* bursts start this close to the line (0.44 psi) */
 #define LEVELER_ALG3_SETTLE_REST_MS 1000u /* a settle ends after this long at rest */
 #define LEVELER_ALG3_PROBE_REACH_UM 12700 /* a probe closes 0.5 in from where it started whatever it saw */
@@ -96,11 +99,13 @@ typedef struct {
     bool recharging;          /* accumulator charge in progress */
     bool fine;                /* the present move corrects a small departure: in bursts near the line */
     bool use_acc;             /* the present fill may draw on the accumulator (a large or fast departure) */
+    bool assist;              /* ... or it does now: a fill that has not broken away (LEVELER_ALG3_ASSIST_MS) */
     bool retry;               /* the last move closed on an estimate and moved nothing: go on as it was */
     bool bursting;            /* a burst of a fine move is under way since burst_start_ms */
     uint32_t burst_start_ms;
     uint16_t burst_ms;        /* length of the present burst */
     uint16_t moves;
+    int32_t move_from_um;     /* where the present move started */
     uint8_t probe;            /* leveler_alg3_probe_kind of the present move */
     int32_t probe_from_um;    /* where the probe started */
     int32_t probe_moved_um;   /* an early probe closes once moved this far */
