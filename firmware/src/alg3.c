@@ -139,7 +139,6 @@ bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, int32_t moved
     a->fine = false;
     a->use_acc = dir < 0; /* a fill: until half way up (moving()), then never again in this probe */
     a->probe = kind;
-    a->probe_from_um = leveler_alg3_height_um(&a->filter);
     a->probe_moved_um = moved_um < LEVELER_ALG3_PROBE_MOVED_MIN_UM   ? LEVELER_ALG3_PROBE_MOVED_MIN_UM
                         : moved_um > LEVELER_ALG3_PROBE_MOVED_MAX_UM ? LEVELER_ALG3_PROBE_MOVED_MAX_UM
                                                                      : moved_um;
@@ -180,7 +179,7 @@ static bool burst_done(leveler_alg3 *a, bool up, int32_t p_spring_pa, int32_t li
 /* How far the platform moved the probe's way since it started (um). */
 int32_t leveler_alg3_probe_moved_um(const leveler_alg3 *a, bool up)
 {
-    return leveler_alg3_moved_um(&a->filter, a->probe_from_um, up);
+    return leveler_alg3_moved_um(&a->filter, a->move_from_um, up);
 }
 
 /* A probe's end: the break-away seen (the learner registered a motion the probe's way), or (an early
@@ -243,7 +242,7 @@ static leveler_alg3_view learner_view(const leveler_alg3 *a)
     v.settling = a->phase == LEVELER_ALG3_SETTLING;
     v.commissioning = a->commissioning;
     v.probe = a->probe != LEVELER_ALG3_PROBE_NONE;
-    v.probe_from_um = a->probe_from_um;
+    v.move_from_um = a->move_from_um;
     v.probe_moved_um = a->probe_moved_um;
     return v;
 }

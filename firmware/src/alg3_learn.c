@@ -107,7 +107,7 @@ static void probe_stop(leveler_alg3_watch *w, const leveler_alg3_view *v, const 
                        leveler_settings *learnt, bool *changed)
 {
     const leveler_alg3_height_filter *f = v->filter;
-    if (leveler_alg3_moved_um(f, v->probe_from_um, up) < v->probe_moved_um) {
+    if (leveler_alg3_moved_um(f, v->move_from_um, up) < v->probe_moved_um) {
         return;
     }
     unsigned newest = (f->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;

@@ -105,9 +105,8 @@ typedef struct {
     uint32_t burst_start_ms;
     uint16_t burst_ms;        /* length of the present burst */
     uint16_t moves;
-    int32_t move_from_um;     /* where the present move started */
+    int32_t move_from_um;     /* where the present (or last) move started, a probe's too */
     uint8_t probe;            /* leveler_alg3_probe_kind of the present move */
-    int32_t probe_from_um;    /* where the probe started */
     int32_t probe_moved_um;   /* an early probe closes once moved this far */
     bool hold;                /* commissioning in charge: idle acts on no departure (commissioning.h) */
     bool commissioning;       /* the load is held: a motion nobody asked for is a creep, not a load change */

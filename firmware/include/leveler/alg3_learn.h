@@ -71,7 +71,7 @@ typedef struct {
     bool settling;            /* valves closed after a move, until the platform is at rest */
     bool commissioning;       /* the load is held: a motion nobody asked for is a creep, not a load change */
     bool probe;               /* the present (or last) move is a commissioning probe */
-    int32_t probe_from_um;    /* where the probe started */
+    int32_t move_from_um;     /* where the present (or last) move (a probe) started */
     int32_t probe_moved_um;   /* an early probe closes once moved this far */
 } leveler_alg3_view;
 
