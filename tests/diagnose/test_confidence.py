@@ -206,3 +206,22 @@ def test_none_within_the_noise_through_changes_under_material_is_likely():
     a = confidence.assess([], RANKING, 1.1, 1.0, None, None, None, moved={}, unmoved=True)
     assert a["level"] == "likely" and a["set"][0] == "none" and "valve_dynamics" in a["set"]
     assert level(1.1, {})["level"] == "sure"          # no calibration kept: within the noise, sure
+
+
+# offform valve_deadtime seed 6 (accumulator, rig-rate logs): no effect named; valve_dynamics
+# closes 47.9 % of a held-out gap 3.7 times the noise, the threshold 53.4 % (the floor 43.4 %:
+# the start state moved within its uncertainty closes that much)
+DEADTIME = [{"effect": "valve_dynamics", "shrink_pct": 47.9}, {"effect": "sensor_lag", "shrink_pct": 45.4},
+            {"effect": "leak", "shrink_pct": 39.2}]
+
+
+def test_a_gap_above_the_noise_hints_at_a_candidate_within_the_floor_margin():
+    a = confidence.assess([], DEADTIME, 1.072, 0.289, None, None, None, threshold=53.4)
+    assert a["level"] == "unsure" and a["set"] == ["valve_dynamics", "none"]
+    # within the noise's three gaps: no hint, `none` as before
+    assert confidence.assess([], DEADTIME, 0.80, 0.289, None, None, None, threshold=53.4)["level"] == "likely"
+    # more than the margin under the threshold: no hint
+    assert confidence.hinted([], [dict(DEADTIME[0], shrink_pct=43.0)], 53.4, above_noise=True) is None
+    # the threshold's own floor (15 %) still holds: 10 % is no hint, however large the gap
+    assert confidence.hinted([], [dict(DEADTIME[0], shrink_pct=10.0)], 15.0, above_noise=True) is None
+    assert confidence.hinted([], [dict(DEADTIME[0], shrink_pct=15.0)], 15.0, above_noise=True) is not None

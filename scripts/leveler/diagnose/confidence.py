@@ -22,6 +22,8 @@ effect (the nearest look-alike is kept as `nearest`), with where the residual li
 import json
 import os
 
+from .evidence import FLOOR_MARGIN_PTS, THRESHOLD_PCT
+
 LEVELS_FILE = os.path.join(os.path.dirname(__file__), "data", "confidence.json")
 
 SURE_MARGIN_PTS = 25.0      # the named effect beats the next candidate by this many held-out points
@@ -114,14 +116,19 @@ def _contenders(ranking, lead_pct, pts):
     return [r["effect"] for r in ranking if r["shrink_pct"] >= lead_pct - pts]
 
 
-def hinted(effects, ranking, threshold, unexplained_finding=None):
+def hinted(effects, ranking, threshold, unexplained_finding=None, above_noise=False):
     """With no effect named, the candidate that closes the threshold's share of the
     held-out gap but was not named (its gain under the noise gate, or another rule):
     these logs hint at it and cannot confirm it, so `none` and it are a set an
-    experiment can separate. None otherwise."""
+    experiment can separate. With a held-out gap above the noise (above_noise:
+    UNEXPLAINED_NOISE noise gaps or more) also the candidate that falls short of the
+    threshold by less than its margin over the sensitivity floor (and closes
+    THRESHOLD_PCT at least): something is there, and it beats what a start state moved
+    within its uncertainty closes. None otherwise."""
     if effects or unexplained_finding or not ranking or threshold is None:
         return None
-    return ranking[0] if ranking[0]["shrink_pct"] >= threshold else None
+    need = max(THRESHOLD_PCT, threshold - FLOOR_MARGIN_PTS) if above_noise else threshold
+    return ranking[0] if ranking[0]["shrink_pct"] >= need else None
 
 
 def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained_finding, rival=None,
@@ -153,7 +160,7 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
         level, cset = "unsure", ["calibration: " + n for n in alike_values]
         why = (f"no effect; which of {', '.join(alike_values)} is set wrong these logs cannot tell: "
                f"values outside the calibration's explain the held-out runs about as well alone")
-    elif hinted(effects, ranking, threshold):
+    elif hinted(effects, ranking, threshold, above_noise=noise > 0 and cal_gap >= UNEXPLAINED_NOISE * noise):
         level, cset = "unsure", [best["effect"], "none"]
         why = (f"no effect named, but {best['effect']} closes {best['shrink_pct']:.0f}% of the held-out gap "
                f"(an effect must close {threshold:.0f}%) by less than these logs can confirm: an experiment "

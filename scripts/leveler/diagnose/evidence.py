@@ -9,6 +9,9 @@ from . import gap
 # otherwise the answer is `none` (noise and parameter drift stay below it).
 THRESHOLD_PCT = 15.0
 
+# Traces: a named effect must beat the sensitivity floor by this many points.
+FLOOR_MARGIN_PTS = 10.0
+
 # Perturbations far below the published resolution (0.01 in, 1 psi): 10-40 um of
 # height and 50-200 Pa of pressure reading. The shrink they give by chance is
 # what an on-off loop's event figures move by for no physical reason.

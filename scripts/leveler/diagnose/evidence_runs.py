@@ -8,10 +8,7 @@ from . import fit
 from . import gap
 from . import phases as ph
 from . import runs as runs_mod
-from .evidence import THRESHOLD_PCT, Evidence, sensitivity_floor
-
-# Traces: a named effect must beat the floor by this many points.
-FLOOR_MARGIN_PTS = 10.0
+from .evidence import FLOOR_MARGIN_PTS, THRESHOLD_PCT, Evidence, sensitivity_floor
 
 
 def _labels(run):
