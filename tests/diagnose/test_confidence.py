@@ -221,7 +221,7 @@ def test_a_gap_above_the_noise_hints_at_a_candidate_within_the_floor_margin():
     # within the noise's three gaps: no hint, `none` as before
     assert confidence.assess([], DEADTIME, 0.80, 0.289, None, None, None, threshold=53.4)["level"] == "likely"
     # more than the margin under the threshold: no hint
-    assert confidence.hinted([], [dict(DEADTIME[0], shrink_pct=43.0)], 53.4, above_noise=True) is None
+    assert confidence.hinted([], [dict(DEADTIME[0], shrink_pct=43.0)], 53.4, gap_above_noise=True) is None
     # the threshold's own floor (15 %) still holds: 10 % is no hint, however large the gap
-    assert confidence.hinted([], [dict(DEADTIME[0], shrink_pct=10.0)], 15.0, above_noise=True) is None
-    assert confidence.hinted([], [dict(DEADTIME[0], shrink_pct=15.0)], 15.0, above_noise=True) is not None
+    assert confidence.hinted([], [dict(DEADTIME[0], shrink_pct=10.0)], 15.0, gap_above_noise=True) is None
+    assert confidence.hinted([], [dict(DEADTIME[0], shrink_pct=15.0)], 15.0, gap_above_noise=True) is not None

@@ -84,11 +84,16 @@ def worsened(entry, per_phase):
     return sum(added.values()) / total, sorted(added, key=lambda p: -added[p])
 
 
+def above_noise(gap, noise):
+    """A held-out gap above the logs' noise: more than UNEXPLAINED_NOISE noise gaps."""
+    return noise > 0 and gap > UNEXPLAINED_NOISE * noise
+
+
 def unexplained(ranking, cal_gap, noise, per_phase, threshold):
     """The 'not explained by any candidate' finding, or None. ranking: held-out
     shrink of each candidate over the calibrated model (cal_gap)."""
     best = ranking[0]
-    if not (noise > 0 and cal_gap > UNEXPLAINED_NOISE * noise):
+    if not above_noise(cal_gap, noise):
         return None
     left = cal_gap * (1.0 - best["shrink_pct"] / 100.0) / noise
     partly = best["shrink_pct"] < PARTLY_PCT and left > LEFT_NOISE
@@ -116,18 +121,18 @@ def _contenders(ranking, lead_pct, pts):
     return [r["effect"] for r in ranking if r["shrink_pct"] >= lead_pct - pts]
 
 
-def hinted(effects, ranking, threshold, unexplained_finding=None, above_noise=False):
+def hinted(effects, ranking, threshold, unexplained_finding=None, gap_above_noise=False):
     """With no effect named, the candidate that closes the threshold's share of the
     held-out gap but was not named (its gain under the noise gate, or another rule):
     these logs hint at it and cannot confirm it, so `none` and it are a set an
-    experiment can separate. With a held-out gap above the noise (above_noise:
-    UNEXPLAINED_NOISE noise gaps or more) also the candidate that falls short of the
+    experiment can separate. With a held-out gap above the noise (gap_above_noise,
+    more than UNEXPLAINED_NOISE noise gaps) also the candidate that falls short of the
     threshold by less than its margin over the sensitivity floor (and closes
     THRESHOLD_PCT at least): something is there, and it beats what a start state moved
     within its uncertainty closes. None otherwise."""
     if effects or unexplained_finding or not ranking or threshold is None:
         return None
-    need = max(THRESHOLD_PCT, threshold - FLOOR_MARGIN_PTS) if above_noise else threshold
+    need = max(THRESHOLD_PCT, threshold - FLOOR_MARGIN_PTS) if gap_above_noise else threshold
     return ranking[0] if ranking[0]["shrink_pct"] >= need else None
 
 
@@ -160,7 +165,7 @@ def assess(effects, ranking, cal_gap, noise, lookalikes, experiment, unexplained
         level, cset = "unsure", ["calibration: " + n for n in alike_values]
         why = (f"no effect; which of {', '.join(alike_values)} is set wrong these logs cannot tell: "
                f"values outside the calibration's explain the held-out runs about as well alone")
-    elif hinted(effects, ranking, threshold, above_noise=noise > 0 and cal_gap >= UNEXPLAINED_NOISE * noise):
+    elif hinted(effects, ranking, threshold, gap_above_noise=above_noise(cal_gap, noise)):
         level, cset = "unsure", [best["effect"], "none"]
         why = (f"no effect named, but {best['effect']} closes {best['shrink_pct']:.0f}% of the held-out gap "
                f"(an effect must close {threshold:.0f}%) by less than these logs can confirm: an experiment "
@@ -221,4 +226,4 @@ def pinned(ranking, name):
 def leaves_much(entry, noise):
     """An entry (a single effect's fit or a pair) leaves a held-out gap well above the
     logs' noise (UNEXPLAINED_NOISE noise gaps): part of the gap is not its."""
-    return noise > 0 and entry["holdout_gap"] > UNEXPLAINED_NOISE * noise
+    return above_noise(entry["holdout_gap"], noise)
