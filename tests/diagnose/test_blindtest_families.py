@@ -10,7 +10,7 @@ import pytest
 from leveler import config as leveler_config
 from leveler.diagnose import blindtest as bt
 from leveler.diagnose import runs
-from leveler import engine
+from leveler import engine, thesis
 
 
 def _flat(doc):
@@ -115,5 +115,5 @@ def test_the_1000lb_accumulator_rig_runs_only_when_asked(cplant, tmp_path):
     assert rig["controller"]["algorithm"] == 2
     run = runs.load_run(str(tmp_path / "logs" / "cal1.csv"))
     assert run.load_n[0] == pytest.approx(1000.0 * bt.LB)
-    charge_pa = 120.0 * 6894.757 + 101325.0
+    charge_pa = 120.0 * thesis.PA_PER_PSI + thesis.AMBIENT_PA   # the thesis charge, psig
     assert abs(np.nanmedian(run.signals["p_acc_pa"][:20]) - charge_pa) < 0.05 * charge_pa
