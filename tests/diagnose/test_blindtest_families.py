@@ -108,6 +108,9 @@ def test_the_1000lb_accumulator_rig_runs_only_when_asked(cplant, tmp_path):
         pytest.skip(f"libleveler_truth.so not available: {e}")
     assert {bt.case_kind(seed, slot)[0] for seed in range(1, 25) for slot in range(130)} == set(bt.SYSTEMS)
     assert "1000lb-accumulator" not in bt.SYSTEMS and "1000lb-accumulator" in bt.ALL_SYSTEMS
+    # the systems whose logs hold P3 are those whose configs have an accumulator
+    assert bt.ACCUMULATOR_SYSTEMS == {s for s, v in bt.ALL_SYSTEMS.items()
+                                      if leveler_config.resolved(f"{bt.CONFIG_DIR}/{v[0]}.ini")["accumulator"]["type"] != "none"}
     spec = bt.family_specs("offform")[0]
     _, system, kind, _, _ = bt.form_logs(cplant, str(tmp_path), 20, spec, force=("1000lb-accumulator", "rig", "step", None))
     assert (system, kind) == ("1000lb-accumulator", "rig")

@@ -80,6 +80,7 @@ EXTRA_SYSTEMS = {
     "1000lb-accumulator": ("thesis-1000lb-diaphragm", 1000.0, (240.0, 180.0), 210.0),
 }
 ALL_SYSTEMS = {**SYSTEMS, **EXTRA_SYSTEMS}
+ACCUMULATOR_SYSTEMS = {"accumulator", "1000lb-accumulator"}    # those whose logs hold P3
 FIRMWARE_NOISE_COUNTS = 1.0
 # log kinds: (name, rate range Hz, jitter fraction of a period, bits, height noise m, pressure noise Pa)
 LOG_KINDS = {
@@ -275,7 +276,7 @@ def write_truth_log(sim, path, rig, system, steps, end, effect, params, kind, rn
     for s in runlog.PRESSURES:
         v = np.interp(ts, t, tr.signals[s]) + rng.normal(0.0, npr, len(ts))
         sig[s] = quantise(v, PRESSURE_SPAN_PA, bits)
-    if "accumulator" not in system:
+    if system not in ACCUMULATOR_SYSTEMS:
         sig["p_acc_pa"] = np.full(len(ts), np.nan)
     cmds = {k: v[idx] for k, v in tr.commands.items()}
     runs.write_run(path, ts, sig, load[idx], cmds, ALL_SYSTEMS[system][0], "rig")
