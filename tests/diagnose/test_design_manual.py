@@ -113,3 +113,24 @@ def test_the_blind_test_runs_a_proposed_manual_experiment_on_its_truth(case, cpl
         manual[1:] &= manual[:-1]
         assert manual.sum() > 100 and (run.commands[k.replace("manual_", "")][manual] == want[manual]).all(), k
     assert verdict == "line_delay"
+
+
+def test_the_experiment_is_ranked_on_how_each_candidate_shows_against_none(case):
+    """With the model without effect as base (certainty._experiment), a schedule is
+    worth the smaller of the pair's separation and how far each candidate lies from
+    no effect, both beyond the knife edge: the run joins the held-out ones, where
+    the true effect must still show. A leak of zero area is the plant without an
+    effect, so nothing can show it; the look-alike pair above both show on the
+    schedule chosen for them."""
+    prob, a, b = case["prob"], case["a"], case["b"]
+    none = (None, {}, prob.config, "none")
+    zero = design.propose(prob, ("line_delay", a), ("leak", {"leak_area_m2": 0.0}), base=none)
+    assert all(r["each_shows_noise_units"] == 0.0 for r in zero["ranked"])
+
+    p = design.propose(prob, ("line_delay", a), ("sensor_lag", b), base=none)
+    worth = [min(r["separation_noise_units"], r["each_shows_noise_units"]) for r in p["ranked"]]
+    assert worth[0] == max(worth) and worth[0] > 1.0, worth
+    alone = design.propose(prob, ("line_delay", a), ("sensor_lag", b))
+    by = {r["schedule"]: r["separation_noise_units"] for r in alone["ranked"]}
+    # the pair's own separation on each schedule does not depend on the base
+    assert all(abs(by[r["schedule"]] - r["separation_noise_units"]) < 1e-9 for r in p["ranked"])

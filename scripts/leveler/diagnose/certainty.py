@@ -30,10 +30,12 @@ def lookalike_step(problem, ranking, threshold, named, progress, design_pair=Non
 
 
 def _experiment(problem, ranking, pair, progress):
-    """The experiment that best separates two candidates the verdict cannot (design.py)."""
+    """The experiment that best separates two candidates the verdict cannot, on which
+    each of them also shows against no effect (design.py)."""
     by = {r["effect"]: r for r in ranking}
     a, b = by[pair[0]], by[pair[1]]
-    exp = design.propose(problem, (a["effect"], values_of(a)), (b["effect"], values_of(b)))
+    exp = design.propose(problem, (a["effect"], values_of(a)), (b["effect"], values_of(b)),
+                         base=(None, {}, problem.config, "none"))
     best = exp["ranked"][0]
     progress(f"      proposed experiment to tell {a['effect']} from {b['effect']}: {best['schedule']} "
              f"(predicted difference {best['separation_noise_units']:.1f} x sensor noise)")

@@ -211,47 +211,63 @@ def jittered(run, noise, sign):
                                      sign * noise.get("p_spring_pa", SIGNAL_FLOOR["p_spring_pa"])))
 
 
-def separation(problem, run, a, b, noise, steps=None):
+def separation(problem, run, a, b, noise, steps=None, base=None):
     """Predicted difference between fitted candidates a and b, in noise units; the
     knife edge: how far either candidate's own prediction moves when the start
     moves by one standard deviation of the sensor noise (a platform held by
     hysteresis may break free a pulse earlier or later for no reason the rig
-    can control); and whether either simulation saw the supervisor override the
-    schedule's manual rows."""
+    can control); whether either simulation saw the supervisor override the
+    schedule's manual rows; and with base (the model without either effect): the
+    smaller of a's and b's differences from it beyond their knife edges, else None."""
     # a candidate is (effect, params) on the problem's config, or (effect, params, config, label)
     sim = lambda r, e: problem.sim.simulate(e[2] if len(e) > 2 else problem.config, r, e[0], e[1], CLOSED_LOOP)
-    ta, tb = sim(run, a), sim(run, b)
-    edge = 0.0
+    models = [a, b] + ([base] if base is not None else [])
+    traces = [sim(run, m) for m in models]
+    edges = [0.0] * len(models)
     for sign in (-1.0, 1.0):
         r = jittered(run, noise, sign)
-        edge = max(edge, distance(ta, sim(r, a), noise), distance(tb, sim(r, b), noise))
-    unsafe = bool(steps) and (overridden(ta, steps) + overridden(tb, steps)) > 0
-    return distance(ta, tb, noise), edge, unsafe
+        for i, m in enumerate(models):
+            edges[i] = max(edges[i], distance(traces[i], sim(r, m), noise))
+    unsafe = bool(steps) and (overridden(traces[0], steps) + overridden(traces[1], steps)) > 0
+    shows = None
+    if base is not None:
+        shows = min(max(distance(traces[i], traces[2], noise) - max(edges[i], edges[2]), 0.0) for i in (0, 1))
+    return distance(traces[0], traces[1], noise), max(edges[0], edges[1]), unsafe, shows
 
 
-def propose(problem, a, b, noise=None):
+def propose(problem, a, b, noise=None, base=None):
     """Rank the schedules for separating a = (effect, params) from b (or either as
     (effect or None, params, config, label): a model with another config, such as the
     calibrated one against an effect on the config as given); best first, by
     the predicted difference beyond the knife edge (a difference that an
-    imperceptible change of the start also makes is no evidence). A manual
+    imperceptible change of the start also makes is no evidence). With base (the
+    model without either effect, as a or b's 4-tuple): by the smaller of that
+    and how far each of a and b lies from base beyond the knife edge. The run
+    joins the held-out ones, where an effect must still show against no effect:
+    a schedule that parts a from b but on which the true one barely shows dilutes
+    its evidence (present family seed 30, 1000 lb accumulator rig: area against
+    line_delay parted by 11.4 noise units on a spring-valve pulse train, and the
+    run then left area below what the held-out runs could confirm). A manual
     sequence the supervisor would override (in either candidate's simulation)
     is left out of the ranking and listed under `unsafe`."""
     noise = noise or noise_levels(problem.runs)
     like = problem.runs[0]
-    base = float(like.load_n[0])
+    base_n = float(like.load_n[0])
     ranked, unsafe = [], []
-    for name, steps, end in candidate_schedules(base, like.measured("p_acc_pa")):
+    for name, steps, end in candidate_schedules(base_n, like.measured("p_acc_pa")):
         run = schedule_run(like, steps, end)
-        sep, edge, over = separation(problem, run, a, b, noise, steps)
+        sep, edge, over, shows = separation(problem, run, a, b, noise, steps, base)
         rows = [[float(r[0]), float(r[1]), dict(r[2])] for r in steps]
         if rows[-1][0] < end:
-            rows.append([end, base, {}])
+            rows.append([end, base_n, {}])
         entry = {"schedule": name, "kind": "manual" if schedule_writes(steps) else "load", "steps": rows,
                  "separation_noise_units": max(sep - edge, 0.0), "difference_noise_units": sep,
                  "knife_edge_noise_units": edge}
+        if shows is not None:
+            entry["each_shows_noise_units"] = shows
         (unsafe if over else ranked).append(entry)
-    ranked.sort(key=lambda r: (-r["separation_noise_units"], -r["difference_noise_units"]))
+    score = lambda r: min(r["separation_noise_units"], r.get("each_shows_noise_units", np.inf))
+    ranked.sort(key=lambda r: (-score(r), -r["separation_noise_units"], -r["difference_noise_units"]))
     label = lambda e: e[3] if len(e) > 3 else e[0]
     return {"between": [label(a), label(b)], "noise": noise, "ranked": ranked,
             "unsafe": [u["schedule"] for u in unsafe]}
@@ -268,7 +284,9 @@ def write_schedule(path, proposal, columns=None):
         fh.write(f"# proposed by leveler-diagnose to tell {proposal['between'][0]} from "
                  f"{proposal['between'][1]}: {best['schedule']}\n")
         fh.write(f"# predicted difference {best.get('difference_noise_units', best['separation_noise_units']):.1f} "
-                 f"x the sensor noise, {best['separation_noise_units']:.1f} beyond the knife edge\n")
+                 f"x the sensor noise, {best['separation_noise_units']:.1f} beyond the knife edge"
+                 + (f"; each {best['each_shows_noise_units']:.1f} from no effect" if "each_shows_noise_units" in best
+                    else "") + "\n")
         if used:
             fh.write(f"# {MODE} {MANUAL} = manual (the manual_* requests drive the actuators, still supervised), "
                      f"{AUTO} = auto; "

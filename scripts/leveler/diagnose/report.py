@@ -49,7 +49,9 @@ def _lookalikes(result):
             ("told apart", lambda r: "no" if r["cannot_tell_apart"] else "yes")]) if sep else None,
         "experiment": {"between": exp["between"], "unsafe": exp.get("unsafe") or [], "table": _table(exp["ranked"], [
             ("schedule", lambda r: r["schedule"]), ("kind", lambda r: r.get("kind", "load")),
-            ("predicted difference / sensor noise", lambda r: r["separation_noise_units"])])} if exp else None,
+            ("predicted difference / sensor noise", lambda r: r["separation_noise_units"])]
+            + ([("each from no effect / sensor noise", lambda r: r["each_shows_noise_units"])]
+               if any("each_shows_noise_units" in r for r in exp["ranked"]) else []))} if exp else None,
     }
 
 
