@@ -134,3 +134,28 @@ def test_the_experiment_is_ranked_on_how_each_candidate_shows_against_none(case)
     by = {r["schedule"]: r["separation_noise_units"] for r in alone["ranked"]}
     # the pair's own separation on each schedule does not depend on the base
     assert all(abs(by[r["schedule"]] - r["separation_noise_units"]) < 1e-9 for r in p["ranked"])
+
+
+def test_a_sequence_the_rig_without_either_effect_could_not_run_is_unsafe(case, tmp_path):
+    """The base is the rig as it may well be (neither effect): a manual sequence the
+    supervisor would override there is not proposed, however safe both candidates
+    find it. A rig whose pipe holds 1 in3 instead of 12.5 in3: the compressor run
+    against the shut spring valve trips the overpressure cut (supervisor.h), while on
+    the config as given every sequence runs as written."""
+    prob, a, b = case["prob"], case["a"], case["b"]
+    small = tmp_path / "small-pipe.ini"
+    small.write_text(f"[config]\ninclude = {os.path.join(bt.CONFIG_DIR, prob.config + '.ini')}\n"
+                     "name = small-pipe\n\n[pipe]\nvolume_in3 = 1.0\n")
+    as_given = design.propose(prob, ("line_delay", a), ("sensor_lag", b), base=(None, {}, prob.config, "none"))
+    on_small = design.propose(prob, ("line_delay", a), ("sensor_lag", b), base=(None, {}, str(small), "none"))
+    assert as_given["unsafe"] == []
+    against = "compressor 2 x 3 s against the shut spring valve"
+    assert against in on_small["unsafe"] and against not in [r["schedule"] for r in on_small["ranked"]]
+    # what the small pipe's run overrides: the compressor's requests, nothing else
+    steps = next(s for n, s, _ in design.candidate_schedules(float(prob.runs[0].load_n[0])) if n == against)
+    run = design.schedule_run(prob.runs[0], steps, 35.0)
+    trace = prob.sim.simulate(str(small), run, None, {}, design.CLOSED_LOOP)
+    req = design.requested(trace.t_s - trace.t_s[0], steps)["manual_compressor"]
+    on = (req == 1)
+    on[1:] &= on[:-1]
+    assert (trace.commands["compressor"][on] == 0).any()

@@ -216,7 +216,7 @@ def separation(problem, run, a, b, noise, steps=None, base=None):
     knife edge: how far either candidate's own prediction moves when the start
     moves by one standard deviation of the sensor noise (a platform held by
     hysteresis may break free a pulse earlier or later for no reason the rig
-    can control); whether either simulation saw the supervisor override the
+    can control); whether any simulation (a, b or base) saw the supervisor override the
     schedule's manual rows; and with base (the model without either effect): the
     smaller of a's and b's differences from it beyond their knife edges, else None."""
     # a candidate is (effect, params) on the problem's config, or (effect, params, config, label)
@@ -228,7 +228,8 @@ def separation(problem, run, a, b, noise, steps=None, base=None):
         r = jittered(run, noise, sign)
         for i, m in enumerate(models):
             edges[i] = max(edges[i], distance(traces[i], sim(r, m), noise))
-    unsafe = bool(steps) and (overridden(traces[0], steps) + overridden(traces[1], steps)) > 0
+    # the base is the rig as it may well be (neither effect): its run must be safe too
+    unsafe = bool(steps) and sum(overridden(tr, steps) for tr in traces) > 0
     shows = None
     if base is not None:
         shows = min(max(distance(traces[i], traces[2], noise) - max(edges[i], edges[2]), 0.0) for i in (0, 1))
@@ -248,8 +249,9 @@ def propose(problem, a, b, noise=None, base=None):
     its evidence (present family seed 30, 1000 lb accumulator rig: area against
     line_delay parted by 11.4 noise units on a spring-valve pulse train, and the
     run then left area below what the held-out runs could confirm). A manual
-    sequence the supervisor would override (in either candidate's simulation)
-    is left out of the ranking and listed under `unsafe`."""
+    sequence the supervisor would override (in either candidate's simulation,
+    or the base's: the rig may have neither effect) is left out of the ranking
+    and listed under `unsafe`."""
     noise = noise or noise_levels(problem.runs)
     like = problem.runs[0]
     base_n = float(like.load_n[0])
