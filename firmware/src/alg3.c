@@ -293,8 +293,8 @@ static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t h, ui
 }
 
 /* The outputs of the phase. */
-static void phase_outputs(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa, int32_t p_acc_pa,
-                          leveler_outputs *out)
+static void phase_outputs(leveler_alg3 *a, const leveler_settings *set, int32_t p_spring_pa, int32_t p_pipe_pa,
+                          int32_t p_acc_pa, leveler_outputs *out)
 {
     bool acc = set->alg3_accumulator != 0u;
     memset(out, 0, sizeof(*out));
@@ -306,7 +306,9 @@ static void phase_outputs(leveler_alg3 *a, const leveler_settings *set, int32_t 
         return;
     }
     if (a->phase == LEVELER_ALG3_VENTING) {
-        out->spring_valve = true;
+        /* the vent bleeds the pipe first: a pipe left above P2 by a fill or a recharge would
+         * otherwise blow into the spring and lift the platform the wrong way (0.13 in seen) */
+        out->spring_valve = (int64_t)p_pipe_pa <= (int64_t)p_spring_pa + LEVELER_ALG3_ACC_HELP_PA;
         out->vent_valve = true;
         out->acc_valve = acc && (int64_t)p_acc_pa + LEVELER_ALG3_ACC_HELP_PA < (int64_t)p_spring_pa &&
                          p_acc_pa < set->acc_charge_max_pa;
@@ -338,7 +340,6 @@ leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings 
                                         bool held, leveler_outputs *out, leveler_settings *learnt,
                                         bool *learnt_changed)
 {
-    (void)p_pipe_pa;
     *learnt_changed = false;
     uint32_t dt_ms = now_ms - a->last_ms;
     a->last_ms = now_ms;
@@ -359,7 +360,7 @@ leveler_control_state leveler_alg3_step(leveler_alg3 *a, const leveler_settings 
     } else {
         moving(a, set, h, p_spring_pa, now_ms);
     }
-    phase_outputs(a, set, p_spring_pa, p_acc_pa, out);
+    phase_outputs(a, set, p_spring_pa, p_pipe_pa, p_acc_pa, out);
     leveler_dwell_apply(&a->dwell, set->alg3_min_on_ms, set->alg3_min_off_ms, now_ms, out);
     leveler_alg3_view view = learner_view(a);
     leveler_alg3_learn(&a->watch, &view, set, p_spring_pa, dt_ms, learnt, learnt_changed);

@@ -35,18 +35,24 @@ static int setup(void **state)
     return 0;
 }
 
-/* One 10 ms tick; learnt settings applied as the app does (validated). */
-static void tick3(int32_t h, int32_t p2, int32_t p3)
+/* One 10 ms tick with the pipe's own pressure p1; learnt settings applied as the app does (validated). */
+static void tick_pipe(int32_t h, int32_t p2, int32_t p1, int32_t p3)
 {
     leveler_settings learnt;
     bool changed = false;
     now += 10;
-    band_state = leveler_alg3_step(&a, &set, h, p2, p2, p3, now, false, &out, &learnt, &changed);
+    band_state = leveler_alg3_step(&a, &set, h, p2, p1, p3, now, false, &out, &learnt, &changed);
     leveler_alg3_driven(&a, &out, now);
     if (changed && leveler_settings_check(&learnt) == LEVELER_REASON_NONE) {
         set = learnt;
         learnt_count++;
     }
+}
+
+/* One tick with the pipe at P2 (its valve open, or settled to it). */
+static void tick3(int32_t h, int32_t p2, int32_t p3)
+{
+    tick_pipe(h, p2, p2, p3);
 }
 
 static void hold(int32_t h, unsigned ticks)
@@ -120,6 +126,27 @@ static void test_departure_above_vents(void **state)
     hold(UPPER_UM + 5000, 20);
     assert_int_equal(a.phase, LEVELER_ALG3_VENTING);
     assert_true(!out.compressor && out.spring_valve && out.vent_valve && !out.acc_valve);
+    assert_int_equal(band_state, LEVELER_STATE_DISCHARGING);
+}
+
+/* A vent that finds the pipe above P2 (left charged by a fill or an accumulator
+ * recharge) bleeds it through the vent first: the spring valve opens only once
+ * P1 is no more than LEVELER_ALG3_ACC_HELP_PA over P2, else the pipe's air would
+ * blow into the spring and lift the platform the wrong way. */
+static void test_vent_bleeds_a_charged_pipe_first(void **state)
+{
+    (void)state;
+    hold(TARGET_UM, 100);
+    int32_t p1 = P2_PA + 200000; /* 29 psi over the spring */
+    for (unsigned i = 0; i < 20; i++) {
+        tick_pipe(UPPER_UM + 5000, P2_PA, p1, 101325);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_VENTING);
+    assert_true(out.vent_valve && !out.spring_valve && !out.compressor);
+    tick_pipe(UPPER_UM + 5000, P2_PA, P2_PA + LEVELER_ALG3_ACC_HELP_PA + 1, 101325);
+    assert_true(out.vent_valve && !out.spring_valve);
+    tick_pipe(UPPER_UM + 5000, P2_PA, P2_PA + LEVELER_ALG3_ACC_HELP_PA, 101325);
+    assert_true(out.vent_valve && out.spring_valve);
     assert_int_equal(band_state, LEVELER_STATE_DISCHARGING);
 }
 
@@ -751,6 +778,7 @@ int main(void)
         cmocka_unit_test_setup(test_large_departure_acts_at_once, setup),
         cmocka_unit_test_setup(test_fast_fall_acts_inside_band, setup),
         cmocka_unit_test_setup(test_departure_above_vents, setup),
+        cmocka_unit_test_setup(test_vent_bleeds_a_charged_pipe_first, setup),
         cmocka_unit_test_setup(test_noise_never_confirms, setup),
         cmocka_unit_test_setup(test_returning_platform_left_alone, setup),
         cmocka_unit_test_setup(test_fill_closes_early_then_settles, setup),
