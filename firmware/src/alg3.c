@@ -307,8 +307,11 @@ static void phase_outputs(leveler_alg3 *a, const leveler_settings *set, int32_t 
     }
     if (a->phase == LEVELER_ALG3_VENTING) {
         /* the vent bleeds the pipe first: a pipe left above P2 by a fill or a recharge would
-         * otherwise blow into the spring and lift the platform the wrong way (0.13 in seen) */
-        out->spring_valve = (int64_t)p_pipe_pa <= (int64_t)p_spring_pa + LEVELER_ALG3_ACC_HELP_PA;
+         * otherwise blow into the spring and lift the platform the wrong way (0.13 in seen);
+         * for LEVELER_ALG3_BLEED_MAX_MS at most (a P1 reading stuck high must not stop a vent) */
+        bool bleeding = (int64_t)p_pipe_pa > (int64_t)p_spring_pa + LEVELER_ALG3_ACC_HELP_PA &&
+                        a->last_ms - a->phase_start_ms < LEVELER_ALG3_BLEED_MAX_MS;
+        out->spring_valve = !bleeding;
         out->vent_valve = true;
         out->acc_valve = acc && (int64_t)p_acc_pa + LEVELER_ALG3_ACC_HELP_PA < (int64_t)p_spring_pa &&
                          p_acc_pa < set->acc_charge_max_pa;

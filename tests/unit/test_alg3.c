@@ -150,6 +150,25 @@ static void test_vent_bleeds_a_charged_pipe_first(void **state)
     assert_int_equal(band_state, LEVELER_STATE_DISCHARGING);
 }
 
+/* A P1 reading stuck high does not stop a vent: the spring valve opens after
+ * LEVELER_ALG3_BLEED_MAX_MS of venting whatever P1 says. */
+static void test_vent_bleeds_for_a_bounded_time(void **state)
+{
+    (void)state;
+    hold(TARGET_UM, 100);
+    int32_t p1 = P2_PA + 200000;
+    while (a.phase != LEVELER_ALG3_VENTING) {
+        tick_pipe(UPPER_UM + 5000, P2_PA, p1, 101325);
+    }
+    uint32_t start = now;
+    while (!out.spring_valve && now - start < 2000u) {
+        assert_true(out.vent_valve);
+        tick_pipe(UPPER_UM + 5000, P2_PA, p1, 101325);
+    }
+    assert_true(out.spring_valve && out.vent_valve);
+    assert_in_range(now - start, LEVELER_ALG3_BLEED_MAX_MS, LEVELER_ALG3_BLEED_MAX_MS + 10u);
+}
+
 /* Sensor noise of +-8 counts (+-616 um) 1000 um inside the band: 10 minutes, no action. */
 static void test_noise_never_confirms(void **state)
 {
@@ -779,6 +798,7 @@ int main(void)
         cmocka_unit_test_setup(test_fast_fall_acts_inside_band, setup),
         cmocka_unit_test_setup(test_departure_above_vents, setup),
         cmocka_unit_test_setup(test_vent_bleeds_a_charged_pipe_first, setup),
+        cmocka_unit_test_setup(test_vent_bleeds_for_a_bounded_time, setup),
         cmocka_unit_test_setup(test_noise_never_confirms, setup),
         cmocka_unit_test_setup(test_returning_platform_left_alone, setup),
         cmocka_unit_test_setup(test_fill_closes_early_then_settles, setup),

@@ -76,6 +76,7 @@ typedef enum {
 #define LEVELER_ALG3_ASSIST_MOVED_UM 1000 /* a fill that rose this far (above sensor noise) has broken away */
 #define LEVELER_ALG3_BURST_ZONE_PA 3000   /* bursts start this close to the line (0.44 psi) */
 #define LEVELER_ALG3_SETTLE_REST_MS 1000u /* a settle ends after this long at rest */
+#define LEVELER_ALG3_BLEED_MAX_MS 1500u   /* a vent bleeds a charged pipe this long at most (0.7 s seen) */
 #define LEVELER_ALG3_PROBE_REACH_UM 12700 /* a probe closes 0.5 in from where it started whatever it saw */
 #define LEVELER_ALG3_PROBE_MOVED_MIN_UM 250   /* an early probe closes once moved this far at least ... */
 #define LEVELER_ALG3_PROBE_MOVED_MAX_UM 2540  /* ... (more with sensor noise: the caller's) and at most */
