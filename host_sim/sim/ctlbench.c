@@ -132,7 +132,8 @@ static void random_steps(ctlbench_scenario *sc, const char *config, uint32_t see
     sc->end_s = sc->steps[sc->step_count - 1].t_s + 60.0;
 }
 
-size_t ctlbench_suite_for(const char *config, bool short_suite, ctlbench_scenario *out, size_t cap)
+size_t ctlbench_suite_for(const char *config, bool short_suite, uint32_t random_seed, ctlbench_scenario *out,
+                          size_t cap)
 {
     size_t n = 0;
     if (cap < 3)
@@ -140,11 +141,11 @@ size_t ctlbench_suite_for(const char *config, bool short_suite, ctlbench_scenari
     thesis(&out[n++], config, 900.0);
     rest(&out[n++], config, 2.0, short_suite ? 120.0 : 600.0);
     if (!short_suite)
-        random_steps(&out[n++], config, 2026u, 24);
+        random_steps(&out[n++], config, random_seed, 24);
     return n;
 }
 
-size_t ctlbench_suite(bool short_suite, ctlbench_scenario *out, size_t cap)
+size_t ctlbench_suite(bool short_suite, uint32_t random_seed, ctlbench_scenario *out, size_t cap)
 {
     static const double noises[] = {0.0, 1.0, 2.0, 4.0};
     size_t n = 0;
@@ -164,9 +165,9 @@ size_t ctlbench_suite(bool short_suite, ctlbench_scenario *out, size_t cap)
         rest(&out[n++], "thesis-900lb-diaphragm", noises[i], 600.0);
     }
     if (n < cap)
-        random_steps(&out[n++], "thesis-900lb", 2026u, 24);
+        random_steps(&out[n++], "thesis-900lb", random_seed, 24);
     if (n < cap)
-        random_steps(&out[n++], "thesis-900lb-diaphragm", 2026u, 24);
+        random_steps(&out[n++], "thesis-900lb-diaphragm", random_seed, 24);
     return n;
 }
 

@@ -5,7 +5,7 @@
  * run, and writes per scenario a PNG (python -m leveler.ctlbench_plot over
  * the run logs) and scorecard.json.
  *
- *   leveler-ctlbench [--out DIR] [--configs DIR] [--short] [--no-plots]
+ *   leveler-ctlbench [--out DIR] [--configs DIR] [--short] [--no-plots] [--random-seed S]
  *
  * Exit status: 0 done (targets missed are reported, not failed), 1 a run failed, 2 bad input.
  */
@@ -318,6 +318,7 @@ static cJSON *json_scorecard(const scored *s, size_t n)
         cJSON_AddStringToObject(sc, "name", s[i].sc.name);
         cJSON_AddStringToObject(sc, "config", s[i].sc.config);
         cJSON_AddNumberToObject(sc, "noise_counts", s[i].sc.noise_counts);
+        cJSON_AddNumberToObject(sc, "seed", s[i].sc.noise_seed); /* a random sequence's too */
         add_fixed(sc, "end_s", s[i].sc.end_s, 0);
         cJSON *runs = cJSON_AddArrayToObject(sc, "runs");
         for (int a = 0; a < 3; a++)
@@ -370,7 +371,7 @@ static int plot_all(const char *dir, const char *configs, const scored *s, size_
     return rc == 0 ? 0 : -1;
 }
 
-enum { OPT_OUT = 0x100, OPT_CONFIGS, OPT_CONFIG, OPT_SHORT, OPT_NO_PLOTS, OPT_QUIET };
+enum { OPT_OUT = 0x100, OPT_CONFIGS, OPT_CONFIG, OPT_SHORT, OPT_NO_PLOTS, OPT_QUIET, OPT_RANDOM_SEED };
 
 static const cli_option bench_options[] = {
     {"out", OPT_OUT, "DIR", "logs, one PNG per scenario and scorecard.json (default build/ctlbench)", 0},
@@ -379,12 +380,14 @@ static const cli_option bench_options[] = {
     {"short", OPT_SHORT, NULL, "the acceptance test's short suite", 0},
     {"no-plots", OPT_NO_PLOTS, NULL, "no logs and no PNGs (figures only)", 0},
     {"quiet", OPT_QUIET, NULL, "no progress lines", 0},
+    {"random-seed", OPT_RANDOM_SEED, "S", "draw the random load sequences from seed S (default 2026): another sequence", 0},
     {NULL, 0, NULL, NULL, 0},
 };
 
 static const cli_spec bench_cli = {
     .prog = "leveler-ctlbench",
-    .usage = "[--out DIR] [--configs DIR | --config FILE] [--short] [--no-plots] [--quiet]",
+    .usage = "[--out DIR] [--configs DIR | --config FILE] [--short] [--no-plots] [--quiet]"
+             " [--random-seed S]",
     .about = "The controller scorecard: algorithms 1, 2 and 3 over the scenario suite (targets missed are\n"
              "reported, not failed).",
     .opts = bench_options,
@@ -393,6 +396,7 @@ static const cli_spec bench_cli = {
 typedef struct {
     const char *out, *configs, *config;
     bool short_suite, plots, quiet;
+    int random_seed;
 } bench_args;
 
 static int bench_option(void *user, int key, const char *v)
@@ -405,6 +409,7 @@ static int bench_option(void *user, int key, const char *v)
     case OPT_SHORT: a->short_suite = true; break;
     case OPT_NO_PLOTS: a->plots = false; break;
     case OPT_QUIET: a->quiet = true; break;
+    case OPT_RANDOM_SEED: return cli_int(&bench_cli, "random-seed", v, 0, 2000000000, &a->random_seed);
     }
     return 0;
 }
@@ -463,7 +468,8 @@ static int one_config(const char *file, char *folder, size_t folder_len, char *s
 
 int main(int argc, char **argv)
 {
-    bench_args a = {.out = "build/ctlbench", .configs = LEVELER_SOURCE_DIR "/host_sim/configs", .plots = true};
+    bench_args a = {.out = "build/ctlbench", .configs = LEVELER_SOURCE_DIR "/host_sim/configs", .plots = true,
+                    .random_seed = (int)CTLBENCH_RANDOM_SEED};
     int prc = cli_parse(&bench_cli, argc, argv, bench_option, &a, NULL);
     if (prc != CLI_CONTINUE)
         return prc;
@@ -480,8 +486,8 @@ int main(int argc, char **argv)
         return 2;
     if (a.config)
         configs = folder;
-    size_t n = a.config ? ctlbench_suite_for(stem, short_suite, suite, MAX_SCENARIOS)
-                        : ctlbench_suite(short_suite, suite, MAX_SCENARIOS);
+    size_t n = a.config ? ctlbench_suite_for(stem, short_suite, (uint32_t)a.random_seed, suite, MAX_SCENARIOS)
+                        : ctlbench_suite(short_suite, (uint32_t)a.random_seed, suite, MAX_SCENARIOS);
     for (size_t i = 0; i < n; i++)
         s[i].sc = suite[i];
     if (run_all(configs, out, plots, a.quiet, s, n) != 0)

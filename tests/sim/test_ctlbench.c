@@ -34,7 +34,7 @@ static runlog_row *rows;
 static int run_suite(void **state)
 {
     (void)state;
-    count = ctlbench_suite(true, suite, 8);
+    count = ctlbench_suite(true, CTLBENCH_RANDOM_SEED, suite, 8);
     size_t cap = ctlbench_rows_needed(suite, count);
     rows = malloc(cap * sizeof *rows);
     if (!rows)

@@ -63,13 +63,18 @@ typedef struct {
     uint16_t latched_faults;    /* firmware latched fault bits at the end */
 } ctlbench_metrics;
 
-/* The suite: full (the issue's scenarios) or short (the acceptance test's).
+/* The random load sequences' seed unless the user gives another. */
+#define CTLBENCH_RANDOM_SEED 2026u
+
+/* The suite: full (the issue's scenarios) or short (the acceptance test's);
+ * random_seed draws the random load sequences (full suite only).
  * Fills out[0..cap-1]; returns the count. */
-size_t ctlbench_suite(bool short_suite, ctlbench_scenario *out, size_t cap);
+size_t ctlbench_suite(bool short_suite, uint32_t random_seed, ctlbench_scenario *out, size_t cap);
 /* The suite on one config (a rig of the user's: the file config.ini in the
  * configs folder): the thesis steps at 900 lb, the rest with 2 counts of noise
  * and (full suite) the random load sequence. Returns the count. */
-size_t ctlbench_suite_for(const char *config, bool short_suite, ctlbench_scenario *out, size_t cap);
+size_t ctlbench_suite_for(const char *config, bool short_suite, uint32_t random_seed, ctlbench_scenario *out,
+                          size_t cap);
 
 /*
  * Run one scenario with one algorithm. configs_dir holds the INI files;
