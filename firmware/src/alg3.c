@@ -81,9 +81,8 @@ static int8_t side(const leveler_settings *set, int32_t h)
  * rest lies outside on that side: a platform coasting back is left alone. */
 static int8_t fast_departure(const leveler_alg3 *a, const leveler_settings *set, int32_t h)
 {
-    int32_t rate = leveler_alg3_prediction_rate(&a->filter);
-    uint16_t coast = rate >= 0 ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
-    int8_t rest_side = side(set, leveler_alg3_predict_um(h, rate, coast));
+    int8_t rest_side = side(set, rate_prediction(a, set, h));
+    int32_t rate = a->filter.rate_um_s;
     bool fast = rate >= LEVELER_ALG3_FAST_UM_S || rate <= -LEVELER_ALG3_FAST_UM_S;
     return (fast && rest_side != 0 && (rest_side > 0) == (rate > 0)) ? rest_side : 0;
 }
@@ -122,7 +121,6 @@ static void start_move(leveler_alg3 *a, int8_t dir, int64_t off_um, uint32_t now
     a->out_dir = 0; /* the departure is being dealt with: a new one must be seen afresh */
     a->out_area_um_ms = 0;
     a->fine = fine;
-    a->burst_dir = fine ? a->burst_dir : 0; /* a whole move: the bursts before it tell nothing now */
     a->bursting = false;
     a->recharging = false; /* a recharge starts again only in the band */
     enter(a, dir < 0 ? LEVELER_ALG3_FILLING : LEVELER_ALG3_VENTING, now_ms);
@@ -147,37 +145,6 @@ bool leveler_alg3_probe(leveler_alg3 *a, int8_t dir, uint8_t kind, int32_t moved
     return true;
 }
 
-/* A fine move's burst, the same way as the last burst that moved: that burst's length scaled to the
- * distance to a quarter band inside the near edge (an early landing costs one more burst, a late one
- * past the far edge a whole gap), at most twice as long as that burst (travel per burst length grows
- * with the length: the pipe's own volume is let in or out first), between the burst start_move set
- * (the first, or a doubled retry) and LEVELER_ALG3_BURST_MAX_MS. 64-bit: distance (< 2^32 um) x
- * length (< 2^16 ms). */
-static uint16_t scaled_burst(const leveler_alg3 *a, const leveler_settings *set, int8_t dir, int32_t h)
-{
-    if (!a->fine || a->burst_dir != dir || a->burst_moved_um <= 0) {
-        return a->burst_ms;
-    }
-    int64_t quarter = ((int64_t)set->band_upper_um - set->band_lower_um) / 4;
-    int64_t want_um = dir < 0 ? (int64_t)set->band_lower_um + quarter - h : (int64_t)h - set->band_upper_um + quarter;
-    int64_t ms = want_um * a->burst_moved_ms / a->burst_moved_um;
-    int64_t most = 2 * (int64_t)a->burst_moved_ms < LEVELER_ALG3_BURST_MAX_MS ? 2 * (int64_t)a->burst_moved_ms
-                                                                            : LEVELER_ALG3_BURST_MAX_MS;
-    return ms <= a->burst_ms ? a->burst_ms : (uint16_t)(ms >= most ? most : ms);
-}
-
-/* At rest after a move: a burst that moved the platform is kept for scaled_burst(); anything else
- * (a whole move, a burst that moved nothing and is retried longer) forgets it. */
-static void note_burst(leveler_alg3 *a)
-{
-    bool up = a->watch.close_dir > 0;
-    int32_t moved = leveler_alg3_moved_um(&a->filter, a->move_from_um, up);
-    bool kept = a->fine && a->bursting && !a->retry && moved >= LEVELER_ALG3_MOVED_UM;
-    a->burst_dir = kept ? (int8_t)(up ? -1 : 1) : 0;
-    a->burst_moved_ms = a->burst_ms;
-    a->burst_moved_um = kept ? moved : 0;
-}
-
 static void idle(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms)
 {
     if (a->hold) {
@@ -188,7 +155,6 @@ static void idle(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32
         bool fast = fast_departure(a, set, h) != 0;
         int64_t off = dir < 0 ? (int64_t)set->band_lower_um - h : (int64_t)h - set->band_upper_um;
         start_move(a, dir, fast ? INT32_MAX : off, now_ms);
-        a->burst_ms = scaled_burst(a, set, dir, h);
     }
 }
 
@@ -320,9 +286,6 @@ static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t h, ui
         }
         if (at_rest) {
             learn_coast(a, set, learnt, changed);
-            note_burst(a);
-        } else {
-            a->burst_dir = 0;
         }
         leveler_alg3_forget_close(&a->watch);
         enter(a, LEVELER_ALG3_IDLE, now_ms);

@@ -77,19 +77,15 @@ static void test_rests_in_band(void **state)
     assert_int_equal(a.moves, 0);
 }
 
-/* 0.004 in below the band, from rest just inside it (a jump from the target in one tick would be a
- * 10 in/s fall, a load change): the area criterion (250 um*s) takes ~2.5 s; not 2 s, by 3 s. */
+/* 0.004 in below the band: the area criterion (250 um*s) takes ~2.5 s. */
 static void test_small_departure_waits_for_persistence(void **state)
 {
     (void)state;
-    hold(LOWER_UM + 100, 100);
-    unsigned ticks = 0;
-    while (a.phase == LEVELER_ALG3_IDLE && ticks < 1000) {
-        hold(LOWER_UM - 100, 1);
-        ticks++;
-        assert_true(a.phase != LEVELER_ALG3_IDLE || all_off());
-    }
-    assert_in_range(ticks, 201, 300);
+    hold(TARGET_UM, 100);
+    hold(LOWER_UM - 100, 200); /* 2 s */
+    assert_int_equal(a.phase, LEVELER_ALG3_IDLE);
+    assert_true(all_off());
+    hold(LOWER_UM - 100, 100); /* 3 s in all */
     assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
     assert_true(out.compressor && out.spring_valve && !out.vent_valve);
     assert_int_equal(band_state, LEVELER_STATE_CHARGING);
@@ -120,24 +116,6 @@ static void test_fast_fall_acts_inside_band(void **state)
     }
     assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
     assert_true(h > LOWER_UM);
-}
-
-/* A load change is seen on the prediction's short window: a fall at 0.6 in/s from rest at the top of
- * the band starts the fill once the 80 ms rate, lagged by the filter (time constant 4 ticks), passes
- * LEVELER_ALG3_FAST_UM_S: 0.8 of the window plus the lag, 12 ticks. The whole window would need 30. */
-static void test_fast_fall_seen_on_short_window(void **state)
-{
-    (void)state;
-    int32_t h = UPPER_UM - 100;
-    hold(h, 100);
-    unsigned ticks = 0;
-    while (a.phase == LEVELER_ALG3_IDLE && ticks < 100) {
-        h -= 152; /* 0.6 in/s */
-        hold(h, 1);
-        ticks++;
-    }
-    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
-    assert_in_range(ticks, LEVELER_ALG3_FAST_TICKS, LEVELER_ALG3_FAST_TICKS + 2u * LEVELER_ALG3_FILTER_DIV);
 }
 
 /* A departure above the band vents; the accumulator valve stays shut without one. */
@@ -458,8 +436,8 @@ static void test_recharge_through_noise_at_the_edge(void **state)
     int32_t low = set.acc_charge_max_pa - 20000;
     tick3(UPPER_UM + 500, P2_PA, low); /* outside before any recharge: none starts */
     assert_true(a.out_dir != 0 && !out.compressor);
-    for (unsigned i = 0; i < 300; i++) { /* in the band, then a drift to its edge at 0.07 in/s */
-        tick3(i < 150 ? TARGET_UM : TARGET_UM + (int32_t)(UPPER_UM - TARGET_UM) * (int32_t)(i - 149) / 150, P2_PA, low);
+    for (unsigned i = 0; i < 300; i++) {
+        tick3(i < 150 ? TARGET_UM : UPPER_UM, P2_PA, low);
     }
     assert_true(out.compressor && out.acc_valve);
     unsigned outside = 0;
@@ -654,68 +632,6 @@ static void test_settle_waits_for_rest_after_close(void **state)
     assert_int_equal(a.moves, 1);
 }
 
-/* One tick at h with P2 on the down line as the controller estimates it there (a platform at rest
- * after a vent: P2 rises back onto the line as it comes down). */
-static void on_down_line(int32_t h, unsigned ticks)
-{
-    for (unsigned i = 0; i < ticks; i++) {
-        int32_t p = leveler_alg3_line_estimate(&a.watch.lines, &set, false, h);
-        tick3(h, p != 0 ? p : P2_PA, 101325);
-    }
-}
-
-/* A fine vent's burst from rest on the down line; returns how long it was open (ms). */
-static uint32_t fine_vent_burst(int32_t h)
-{
-    for (unsigned i = 0; i < 500 && a.phase != LEVELER_ALG3_VENTING; i++) {
-        on_down_line(h, 1);
-    }
-    assert_int_equal(a.phase, LEVELER_ALG3_VENTING);
-    assert_true(a.fine);
-    uint32_t start = now;
-    while (a.phase == LEVELER_ALG3_VENTING && now - start < 3000) {
-        on_down_line(h, 1);
-    }
-    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
-    return now - start;
-}
-
-/* The burst carries the platform down by um at 3 mm/s; at rest until the settle ends (noted). */
-static int32_t coast_after_burst(int32_t h, int32_t um)
-{
-    for (int32_t moved = 0; moved < um; moved += 30) {
-        h -= um - moved < 30 ? um - moved : 30;
-        on_down_line(h, 1);
-    }
-    for (unsigned i = 0; i < 500 && a.phase == LEVELER_ALG3_SETTLING; i++) {
-        on_down_line(h, 1);
-    }
-    assert_int_equal(a.phase, LEVELER_ALG3_IDLE);
-    return h;
-}
-
-/* A burst that moved the platform sizes the next one the same way: its length times the distance
- * left to a quarter band inside the near edge over the distance it moved, at most twice its length. */
-static void test_next_burst_scaled_to_distance(void **state)
-{
-    (void)state;
-    int32_t h = UPPER_UM + 2500; /* a small departure above, at rest on the down line at P2_PA */
-    a.watch.lines.end_valid = true;
-    a.watch.lines.end_trusted = true;
-    a.watch.lines.end_dir = -1;
-    a.watch.lines.end_height_um = h;
-    a.watch.lines.end_p_spring_pa = P2_PA;
-    uint32_t first = fine_vent_burst(h);
-    assert_in_range(first, LEVELER_ALG3_BURST_MS, LEVELER_ALG3_BURST_MS + 20);
-    h = coast_after_burst(h, 1500); /* still above the band */
-    uint32_t second = fine_vent_burst(h);
-    double want = (h - (UPPER_UM - (UPPER_UM - LOWER_UM) / 4.0)) * LEVELER_ALG3_BURST_MS / 1500.0;
-    assert_in_range(second, (uint32_t)want, (uint32_t)want + 20);
-    h = coast_after_burst(h, 600); /* too little again, still above: a third at most twice this */
-    assert_in_range(fine_vent_burst(h), 2u * a.burst_moved_ms, 2u * a.burst_moved_ms + 20u);
-    assert_in_range(a.burst_moved_ms, second - 20u, second);
-}
-
 /* A vent from 20 mm above the band: P2 falls 100 Pa a tick until the platform
  * breaks away, then it falls at fall_um_tick until the vent closes, and comes
  * to rest within 100 ticks with P2 rest_rise_pa over the break-away. Returns
@@ -880,7 +796,6 @@ int main(void)
         cmocka_unit_test_setup(test_small_departure_waits_for_persistence, setup),
         cmocka_unit_test_setup(test_large_departure_acts_at_once, setup),
         cmocka_unit_test_setup(test_fast_fall_acts_inside_band, setup),
-        cmocka_unit_test_setup(test_fast_fall_seen_on_short_window, setup),
         cmocka_unit_test_setup(test_departure_above_vents, setup),
         cmocka_unit_test_setup(test_vent_bleeds_a_charged_pipe_first, setup),
         cmocka_unit_test_setup(test_vent_bleeds_for_a_bounded_time, setup),
@@ -903,7 +818,6 @@ int main(void)
         cmocka_unit_test_setup(test_learns_gap_and_estimates_line_before_breakaway, setup),
         cmocka_unit_test_setup(test_failed_estimate_forgotten, setup),
         cmocka_unit_test_setup(test_settle_waits_for_rest_after_close, setup),
-        cmocka_unit_test_setup(test_next_burst_scaled_to_distance, setup),
         cmocka_unit_test_setup(test_coasted_rest_not_a_line_point, setup),
         cmocka_unit_test_setup(test_close_rule_against_double, setup),
         cmocka_unit_test_setup(test_filter_against_double, setup),

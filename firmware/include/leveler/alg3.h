@@ -105,9 +105,6 @@ typedef struct {
     bool bursting;            /* a burst of a fine move is under way since burst_start_ms */
     uint32_t burst_start_ms;
     uint16_t burst_ms;        /* length of the present burst */
-    int8_t burst_dir;         /* the last burst moved the platform this way (start_move's dir), 0: none */
-    uint16_t burst_moved_ms;  /* ... for this long */
-    int32_t burst_moved_um;   /* ... this far, to rest: the next burst that way is scaled to its distance */
     uint16_t moves;
     int32_t move_from_um;     /* where the present (or last) move started, a probe's too */
     uint8_t probe;            /* leveler_alg3_probe_kind of the present move */
