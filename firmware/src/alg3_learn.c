@@ -134,11 +134,39 @@ static leveler_alg3_verdict judge_close(leveler_alg3_watch *w, const leveler_alg
     return LEVELER_ALG3_VERDICT_RETRY;
 }
 
+/* Closed on an estimated line with an excess that should have carried the platform K_FACTOR times
+ * farther than it went, and it broke away (moved) before it came to rest: the estimate lay beyond the
+ * line (an end point taken while a valve still moved P2, 320 ms of a vent's fall). The platform rests
+ * on its line now, so the next estimate starts from there rather than closing at once on the same
+ * error, move after move (a creep of 0.1 s bursts). */
+static void short_close(leveler_alg3_watch *w, const leveler_alg3_view *v, const leveler_settings *set,
+                        int64_t travel_um)
+{
+    bool up = w->close_dir > 0;
+    int64_t excess = up ? (int64_t)w->close_p_spring_pa - w->close_line_pa
+                        : (int64_t)w->close_line_pa - w->close_p_spring_pa;
+    int64_t along_um = up ? travel_um : -travel_um;
+    int64_t k = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
+    if (v->probe || w->close_dir == 0 || w->close_line_pa == 0 || w->lines.line_fresh || excess <= 0 ||
+        along_um < LEVELER_ALG3_MOVED_UM || along_um * k * LEVELER_ALG3_K_FACTOR >= excess * 1000) {
+        return;
+    }
+    const leveler_alg3_height_filter *f = v->filter;
+    w->lines.end_valid = true;
+    w->lines.end_trusted = true;
+    w->lines.end_dir = w->close_dir;
+    w->lines.end_height_um = leveler_alg3_height_um(f);
+    unsigned newest = (f->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
+    w->lines.end_p_spring_pa = w->p_spring_ring_pa[newest];
+    w->lines.lines_valid = false;
+}
+
 leveler_alg3_verdict leveler_alg3_learn_coast(leveler_alg3_watch *w, const leveler_alg3_view *v,
                                               const leveler_settings *set, leveler_settings *learnt, bool *changed)
 {
     int64_t travel_um = (int64_t)leveler_alg3_height_um(v->filter) - w->close_height_um;
     leveler_alg3_verdict verdict = judge_close(w, v, travel_um);
+    short_close(w, v, *changed ? learnt : set, travel_um);
     if (set->alg3_learn == 0u || w->close_dir == 0) {
         return verdict;
     }

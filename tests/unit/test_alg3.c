@@ -704,6 +704,38 @@ static void test_failed_estimate_forgotten(void **state)
     assert_int_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h0), 0);
 }
 
+/* A close on an estimate that lay beyond the line: the excess it saw should have carried the
+ * platform 13.7 mm (10 kPa at 915 Pa/mm, stretched 5/4), and it creeps 1 mm/s, slower than the rate
+ * calls a motion, 1 mm before the settle sees it at rest. Where it rests is on its line: the next
+ * estimate starts there (without it, the next fill closes at once on the same error, move after move). */
+static void test_short_close_estimates_from_its_rest(void **state)
+{
+    (void)state;
+    int32_t h = LOWER_UM - 5000;
+    a.watch.lines.end_valid = true;
+    a.watch.lines.end_trusted = true;
+    a.watch.lines.end_dir = 1;
+    a.watch.lines.end_height_um = h;
+    a.watch.lines.end_p_spring_pa = 650000;
+    hold(h, 1);
+    for (unsigned i = 0; i < 100 && a.phase != LEVELER_ALG3_SETTLING; i++) {
+        tick3(h, 660000, 101325); /* 10 kPa over the estimate: closes at once */
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    const int32_t p_line = 661000; /* the true up line, where the creep runs */
+    for (unsigned i = 0; i < 300 && a.phase == LEVELER_ALG3_SETTLING; i++) {
+        h += 10;
+        tick3(h, p_line, 101325);
+    }
+    assert_int_not_equal(a.phase, LEVELER_ALG3_SETTLING);
+    assert_true(h - (LOWER_UM - 5000) >= LEVELER_ALG3_MOVED_UM); /* it moved: not a failed estimate */
+    assert_false(a.retry);
+    assert_true(a.watch.lines.end_trusted);
+    assert_int_equal(a.watch.lines.end_dir, 1);
+    int32_t at = leveler_alg3_height_um(&a.filter);
+    assert_in_range(leveler_alg3_line_estimate(&a.watch.lines, &set, true, at), p_line - 100, p_line + 100);
+}
+
 /* Double reference of the early-close rule over random states: the fixed-point
  * rule agrees except within 2 um (its rounding) of the target. */
 static void test_close_rule_against_double(void **state)
@@ -817,6 +849,7 @@ int main(void)
         cmocka_unit_test_setup(test_learns_coast, setup),
         cmocka_unit_test_setup(test_learns_gap_and_estimates_line_before_breakaway, setup),
         cmocka_unit_test_setup(test_failed_estimate_forgotten, setup),
+        cmocka_unit_test_setup(test_short_close_estimates_from_its_rest, setup),
         cmocka_unit_test_setup(test_settle_waits_for_rest_after_close, setup),
         cmocka_unit_test_setup(test_coasted_rest_not_a_line_point, setup),
         cmocka_unit_test_setup(test_close_rule_against_double, setup),

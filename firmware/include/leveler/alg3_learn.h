@@ -94,7 +94,9 @@ void leveler_alg3_note_close(leveler_alg3_watch *w, const leveler_alg3_height_fi
  * the coast stiffness (excess over the line at the close / travel) from the
  * recorded close; a close on an estimate after which nothing moved forgets
  * the estimate and returns LEVELER_ALG3_VERDICT_RETRY (never for a probe:
- * commissioning judges its own). The controller then forgets the close
+ * commissioning judges its own); a close on an estimate that carried the
+ * platform under a third of its predicted travel puts the estimate's point
+ * where it rests (it moved: it rests on its line). The controller then forgets the close
  * (leveler_alg3_forget_close). */
 leveler_alg3_verdict leveler_alg3_learn_coast(leveler_alg3_watch *w, const leveler_alg3_view *v,
                                               const leveler_settings *set, leveler_settings *learnt, bool *changed);
