@@ -275,6 +275,41 @@ static void score_steps(const ctlbench_scenario *sc, const runlog_row *rows, siz
     ctlbench_aggregate(m);
 }
 
+/* The first row at or after the last step's back-to-stay with the spring and vent valves shut: the
+ * return's own close comes a few ticks after the platform is back in the band. n when it never settled. */
+static size_t return_over(const runlog_row *rows, size_t n, const ctlbench_metrics *m)
+{
+    if (m->step_count == 0)
+        return 0;
+    const ctlbench_step *last = &m->step[m->step_count - 1];
+    if (!last->settled)
+        return n;
+    size_t i = row_at(last->t_s + last->return_s, n);
+    while (i < n && (rows[i].spring_valve > 0 || rows[i].vent_valve > 0))
+        i++;
+    return i;
+}
+
+void ctlbench_rest_split(const ctlbench_scenario *sc, const runlog_row *rows, size_t n, ctlbench_metrics *m)
+{
+    m->rest_returning = m->rest_recharge = m->rest_moves = 0;
+    if (sc->kind != CTLBENCH_REST)
+        return;
+    size_t over = return_over(rows, n, m);
+    for (size_t i = 1; i < n; i++) {
+        const runlog_row *r = &rows[i], *p = &rows[i - 1];
+        if (r->t_s < sc->rest_from_s || r->t_s >= sc->rest_to_s || row_bits(r) == row_bits(p))
+            continue;
+        bool valves = (r->spring_valve > 0) != (p->spring_valve > 0) || (r->vent_valve > 0) != (p->vent_valve > 0);
+        if (i <= over)
+            m->rest_returning++;
+        else if (valves)
+            m->rest_moves++;
+        else
+            m->rest_recharge++;
+    }
+}
+
 /* Run-wide figures: switchings, compressor time, air out of the vent, time outside, the rest window. */
 static void score_run(const ctlbench_scenario *sc, const runlog_row *rows, size_t n, const band *b, const plant *pl,
                       ctlbench_metrics *m)
@@ -325,6 +360,7 @@ void ctlbench_score(const ctlbench_scenario *sc, const plant_config *cfg, const 
     band b = {cfg->band_lower_m, cfg->band_upper_m};
     score_steps(sc, rows, res->rows, &b, m);
     score_run(sc, rows, res->rows, &b, &res->final_plant, m);
+    ctlbench_rest_split(sc, rows, res->rows, m);
     m->latched_faults = leveler_app_status()->latched_fault_bits;
 }
 

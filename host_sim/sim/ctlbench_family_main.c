@@ -174,6 +174,9 @@ static cJSON *json_rig(const rig_result *r)
     cJSON_AddItemToObject(o, "up_shift_psi", cJSON_CreateDoubleArray(g->up_shift_psi, CTLBENCH_FAMILY_BANDS));
     cJSON_AddItemToObject(o, "gap_psi", cJSON_CreateDoubleArray(g->gap_psi, CTLBENCH_FAMILY_BANDS));
     cJSON_AddNumberToObject(o, "rest_switchings", r->a3.rest_switchings);
+    cJSON_AddNumberToObject(o, "rest_returning", r->a3.rest_returning);
+    cJSON_AddNumberToObject(o, "rest_recharge", r->a3.rest_recharge);
+    cJSON_AddNumberToObject(o, "rest_moves", r->a3.rest_moves);
     json_steps(o, &r->a3, &r->lim, r->ratio);
     cJSON_AddItemToObject(o, "commissioned", json_commissioned(r));
     return o;
@@ -254,6 +257,22 @@ static size_t worst_of(const rig_result *r, size_t n)
     return w;
 }
 
+/* The switchings at rest by what made them: a return still under way, a recharge, a move (hunting). */
+static void print_rest_split(const rig_result *r, size_t n)
+{
+    unsigned sum[3] = {0, 0, 0}, rigs[3] = {0, 0, 0};
+    for (size_t i = 0; i < n; i++) {
+        const unsigned k[3] = {r[i].a3.rest_returning, r[i].a3.rest_recharge, r[i].a3.rest_moves};
+        for (size_t j = 0; j < 3; j++) {
+            sum[j] += k[j];
+            rigs[j] += k[j] > 0;
+        }
+    }
+    printf("switchings at rest: %u on %u rigs while the removal's return was still under way, %u on %u rigs\n"
+           "  by the accumulator's recharge alone, %u on %u rigs by a fill or vent after the return (hunting)\n",
+           sum[0], rigs[0], sum[1], rigs[1], sum[2], rigs[2]);
+}
+
 static void print_table(const rig_result *r, size_t n, size_t w, int seed)
 {
     printf("leveler perturbed rig family: %zu rigs (seed %d) from %s, algorithm 3 with the product defaults and\n"
@@ -276,6 +295,7 @@ static void print_table(const rig_result *r, size_t n, size_t w, int seed)
            r[most].rig.file, r[most].a3.rest_switchings, r[over].a3.overshoot_max_m * IN_PER_M, r[over].rig.file);
     printf("worst rig: %s (return %.2fx its limit, %u switchings at rest, overshoot %.3f in)\n", r[w].rig.file,
            r[w].worst, r[w].a3.rest_switchings, r[w].a3.overshoot_max_m * IN_PER_M);
+    print_rest_split(r, n);
 }
 
 /* The worst rig after commissioning: the largest return ratio. */

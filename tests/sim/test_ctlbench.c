@@ -114,6 +114,63 @@ static void test_rest_with_noise(void **state)
     }
 }
 
+/* The switchings at rest by cause: on the suite's rest runs they add up to the count at rest, and the
+ * thesis's algorithms hunt after their return where algorithm 3 does not. */
+static void test_rest_split_on_the_suite(void **state)
+{
+    (void)state;
+    const char *names[] = {"rest-900lb-noise2", "rest-900lb-diaphragm-noise2"};
+    for (size_t i = 0; i < 2; i++) {
+        const ctlbench_metrics *r = runs(names[i]);
+        for (int a = 0; a < 3; a++)
+            assert_int_equal(r[a].rest_returning + r[a].rest_recharge + r[a].rest_moves, r[a].rest_switchings);
+        assert_true(r[0].rest_moves > 0 || r[1].rest_moves > 0);
+        assert_int_equal(r[2].rest_moves, 0);
+    }
+}
+
+/* One row every 10 ms with the outputs given over [from_s, to_s). */
+static void outputs_on(runlog_row *rs, size_t n, double from_s, double to_s, int comp, int spring, int vent, int acc)
+{
+    for (size_t i = (size_t)llround(from_s / 0.01); i < n && i < (size_t)llround(to_s / 0.01); i++) {
+        rs[i].compressor = comp;
+        rs[i].spring_valve = spring;
+        rs[i].vent_valve = vent;
+        rs[i].acc_valve = acc;
+    }
+}
+
+/* Hand-made rows: a vent that closes 0.2 s after the platform is back to stay (the return's, though in
+ * the rest window), a recharge, then a fill at rest; a switching before the window is not counted. */
+static void test_rest_split_by_hand(void **state)
+{
+    (void)state;
+    ctlbench_scenario sc;
+    ctlbench_thesis_rest(&sc, "split", "thesis-900lb.ini", 0.0, 1u, 600.0);
+    size_t n = (size_t)llround(sc.rest_to_s / 0.01) + 1;
+    runlog_row *rs = calloc(n, sizeof *rs);
+    assert_non_null(rs);
+    for (size_t i = 0; i < n; i++)
+        rs[i].t_s = (double)i * 0.01;
+    outputs_on(rs, n, 50.0, 51.0, 0, 1, 1, 0);   /* before the window */
+    outputs_on(rs, n, 95.5, 96.2, 0, 1, 1, 0);   /* the return's last vent, back to stay at 96.0 s */
+    outputs_on(rs, n, 100.0, 110.0, 1, 0, 0, 1); /* a recharge */
+    outputs_on(rs, n, 300.0, 300.3, 1, 1, 0, 0); /* a fill at rest */
+    ctlbench_metrics mm;
+    memset(&mm, 0, sizeof mm);
+    mm.step_count = 2;
+    mm.step[1] = (ctlbench_step){.t_s = 35.0, .settled = true, .return_s = 61.0};
+    ctlbench_rest_split(&sc, rs, n, &mm);
+    assert_int_equal(mm.rest_returning, 2);
+    assert_int_equal(mm.rest_recharge, 2);
+    assert_int_equal(mm.rest_moves, 2);
+    mm.step[1].settled = false; /* never back to stay: every switching in the window is the return's */
+    ctlbench_rest_split(&sc, rs, n, &mm);
+    assert_int_equal(mm.rest_returning, 6);
+    assert_int_equal(mm.rest_recharge + mm.rest_moves, 0);
+    free(rs);
+}
+
 /* The learnt lines while the 900 lb thesis case runs with algorithm 3, read
  * just before the removal (35 s, 1100 lb on) and at the end (900 lb). */
 static int32_t up_before_pa, down_end_pa;
@@ -242,6 +299,8 @@ int main(void)
         cmocka_unit_test(test_no_accumulator_beats_algorithm1),
         cmocka_unit_test(test_diaphragm_settles_where_algorithm2_cycles),
         cmocka_unit_test(test_rest_with_noise),
+        cmocka_unit_test(test_rest_split_on_the_suite),
+        cmocka_unit_test(test_rest_split_by_hand),
         cmocka_unit_test(test_learnt_lines_match_the_plant),
         cmocka_unit_test(test_limit_bounds_algorithm3),
         cmocka_unit_test(test_limit_search_is_the_scan),

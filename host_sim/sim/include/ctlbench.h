@@ -56,6 +56,11 @@ typedef struct {
     unsigned switchings;        /* whole run */
     double rest_switchings_per_min; /* REST window (NAN otherwise) */
     unsigned rest_switchings;
+    /* rest_switchings split (ctlbench_rest_split): while the last step's return was still under way (up to
+     * the first tick at or after its back-to-stay with the spring and vent valves shut; all of them if it
+     * never settled), the compressor and accumulator valve alone after it (a recharge), and switchings of
+     * the spring or vent valve after it (a fill or vent at rest: hunting) */
+    unsigned rest_returning, rest_recharge, rest_moves;
     double rest_outside_s;
     double compressor_on_s;
     double vented_kg;
@@ -107,6 +112,9 @@ int ctlbench_simulate(const ctlbench_scenario *sc, const sim_options *so, const 
 /* The figures of a finished run (its rows from t = 0) into m. */
 void ctlbench_score(const ctlbench_scenario *sc, const plant_config *cfg, const runlog_row *rows, const sim_result *res,
                     int algorithm, ctlbench_metrics *m);
+
+/* m->rest_returning, rest_recharge and rest_moves of a REST run from its rows and m->step[] (scored). */
+void ctlbench_rest_split(const ctlbench_scenario *sc, const runlog_row *rows, size_t n, ctlbench_metrics *m);
 
 /* The figures over the steps (median, worst, unsettled, overshoot, switchings per step) from m->step[]. */
 void ctlbench_aggregate(ctlbench_metrics *m);
