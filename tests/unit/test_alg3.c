@@ -683,21 +683,28 @@ static void test_coasted_rest_not_a_line_point(void **state)
     assert_in_range(set.alg3_down_pa, expect - 100, expect + 100);
 }
 
+/* A fill from h with the up line estimated from a stop there at 650 kPa: P2 at 660 kPa, 10 kPa over
+ * the estimate, predicts a long coast, so the fill closes at once and the controller settles. */
+static void close_on_up_estimate(int32_t h)
+{
+    a.watch.lines.end_valid = true;
+    a.watch.lines.end_trusted = true;
+    a.watch.lines.end_dir = 1;
+    a.watch.lines.end_height_um = h;
+    a.watch.lines.end_p_spring_pa = 650000;
+    hold(h, 1);
+    for (unsigned i = 0; i < 100 && a.phase != LEVELER_ALG3_SETTLING; i++) {
+        tick3(h, 660000, 101325);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+}
+
 /* A close on an estimate after which nothing moved forgets the estimate. */
 static void test_failed_estimate_forgotten(void **state)
 {
     (void)state;
     int32_t h0 = LOWER_UM - 5000;
-    a.watch.lines.end_valid = true;
-    a.watch.lines.end_trusted = true;
-    a.watch.lines.end_dir = 1;
-    a.watch.lines.end_height_um = h0;
-    a.watch.lines.end_p_spring_pa = 650000;
-    hold(h0, 1);
-    for (unsigned i = 0; i < 100 && a.phase != LEVELER_ALG3_SETTLING; i++) {
-        tick3(h0, 660000, 101325); /* 10 kPa over the estimate: coasts far, closes at once */
-    }
-    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    close_on_up_estimate(h0);
     hold(h0, 200); /* nothing moves */
     assert_false(a.watch.lines.end_trusted);
     assert_int_equal(a.phase, LEVELER_ALG3_FILLING); /* on again, now towards the break-away */
@@ -712,16 +719,7 @@ static void test_short_close_estimates_from_its_rest(void **state)
 {
     (void)state;
     int32_t h = LOWER_UM - 5000;
-    a.watch.lines.end_valid = true;
-    a.watch.lines.end_trusted = true;
-    a.watch.lines.end_dir = 1;
-    a.watch.lines.end_height_um = h;
-    a.watch.lines.end_p_spring_pa = 650000;
-    hold(h, 1);
-    for (unsigned i = 0; i < 100 && a.phase != LEVELER_ALG3_SETTLING; i++) {
-        tick3(h, 660000, 101325); /* 10 kPa over the estimate: closes at once */
-    }
-    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    close_on_up_estimate(h);
     const int32_t p_line = 661000; /* the true up line, where the creep runs */
     for (unsigned i = 0; i < 300 && a.phase == LEVELER_ALG3_SETTLING; i++) {
         h += 10;
