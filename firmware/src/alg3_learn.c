@@ -100,6 +100,22 @@ static void learn_gap(leveler_alg3_watch *w, const leveler_alg3_height_filter *f
 static bool line_point(leveler_alg3_watch *w, const leveler_alg3_height_filter *f, const leveler_settings *set,
                        int8_t dir, int32_t p_spring_pa, leveler_settings *learnt, bool *changed);
 
+/* The ring slot of the newest P2 (the slot of the filter's newest height). */
+static unsigned newest_slot(const leveler_alg3_height_filter *f)
+{
+    return (f->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
+}
+
+/* A motion the dir way (+1 up) stopped at the filtered height with P2 p: where the line estimate starts. */
+static void stopped_at(leveler_alg3_watch *w, const leveler_alg3_height_filter *f, int8_t dir, int32_t p)
+{
+    w->lines.end_valid = true;
+    w->lines.end_trusted = true;
+    w->lines.end_dir = dir;
+    w->lines.end_height_um = leveler_alg3_height_um(f);
+    w->lines.end_p_spring_pa = p;
+}
+
 /* An early probe's platform that broke away (moved its threshold) and came to rest without the rate
  * window seeing a motion: it stopped where P2 is back on the line of its motion. That point teaches
  * the line, the gap from where the last motion stopped, and is where this motion stopped. */
@@ -110,16 +126,11 @@ static void probe_stop(leveler_alg3_watch *w, const leveler_alg3_view *v, const 
     if (leveler_alg3_moved_um(f, v->move_from_um, up) < v->probe_moved_um) {
         return;
     }
-    unsigned newest = (f->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
-    int32_t p = w->p_spring_ring_pa[newest];
+    int32_t p = w->p_spring_ring_pa[newest_slot(f)];
     int8_t dir = up ? 1 : -1;
     learn_gap(w, f, set, dir, p, learnt, changed);
     w->lines.line_fresh = line_point(w, f, set, dir, p, learnt, changed);
-    w->lines.end_valid = true;
-    w->lines.end_trusted = true;
-    w->lines.end_dir = dir;
-    w->lines.end_height_um = leveler_alg3_height_um(f);
-    w->lines.end_p_spring_pa = p;
+    stopped_at(w, f, dir, p);
 }
 
 /* Closed on an estimate and nothing moved: the line lies beyond it (a probe: commissioning judges its own). */
@@ -151,13 +162,7 @@ static void short_close(leveler_alg3_watch *w, const leveler_alg3_view *v, const
         along_um < LEVELER_ALG3_MOVED_UM || along_um * k * LEVELER_ALG3_K_FACTOR >= excess * 1000) {
         return;
     }
-    const leveler_alg3_height_filter *f = v->filter;
-    w->lines.end_valid = true;
-    w->lines.end_trusted = true;
-    w->lines.end_dir = w->close_dir;
-    w->lines.end_height_um = leveler_alg3_height_um(f);
-    unsigned newest = (f->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
-    w->lines.end_p_spring_pa = w->p_spring_ring_pa[newest];
+    stopped_at(w, v->filter, w->close_dir, w->p_spring_ring_pa[newest_slot(v->filter)]);
     w->lines.lines_valid = false;
 }
 
@@ -260,8 +265,7 @@ void leveler_alg3_learn(leveler_alg3_watch *w, const leveler_alg3_view *v, const
                         int32_t p_spring_pa, uint32_t dt_ms, leveler_settings *learnt, bool *changed)
 {
     const leveler_alg3_height_filter *f = v->filter;
-    unsigned newest = (f->ring_head + LEVELER_ALG3_RATE_TICKS - 1u) % LEVELER_ALG3_RATE_TICKS;
-    w->p_spring_ring_pa[newest] = p_spring_pa;
+    w->p_spring_ring_pa[newest_slot(f)] = p_spring_pa;
     int32_t rate = f->rate_um_s;
     bool still = rate < LEVELER_ALG3_STILL_UM_S && rate > -LEVELER_ALG3_STILL_UM_S;
     w->still_ms = still ? leveler_sat_add_u32(w->still_ms, dt_ms) : 0u;
@@ -285,11 +289,7 @@ void leveler_alg3_learn(leveler_alg3_watch *w, const leveler_alg3_view *v, const
     } else if (w->motion != 0 && still && !w->ended) {
         /* the motion has just ended: P2 where it ended lies on its line */
         w->ended = true;
-        w->lines.end_valid = true;
-        w->lines.end_trusted = true;
-        w->lines.end_dir = w->motion;
-        w->lines.end_height_um = leveler_alg3_height_um(f);
-        w->lines.end_p_spring_pa = p_spring_at_start(w, f);
+        stopped_at(w, f, w->motion, p_spring_at_start(w, f));
     } else if (w->motion != 0 && w->still_ms >= LEVELER_ALG3_REST_MS) {
         bool sealed = v->valves_dir == 0; /* idle or settling */
         /* a platform that coasted from a fast close came to rest past its line,
