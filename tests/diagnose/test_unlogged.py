@@ -11,6 +11,7 @@ from conftest import LB, thesis_schedule
 from leveler.diagnose import blindtest as bt
 from leveler.diagnose import design, runs, separability
 from leveler.diagnose.cplant import floor_above_noise, nearest_index
+from leveler.diagnose.edges import PLACE_SIGNALS
 from leveler.diagnose.start_state import DISCHARGE, chatter_track, initial_state
 from leveler.diagnose.fit import Problem, cost_to_gap, noise_gap, run_residual, start_shifts
 from leveler.diagnose.model import REPLAY
@@ -138,13 +139,13 @@ def test_accumulator_rig_logs_replay_to_their_noise_with_each_switch_placed(cpla
     assert np.median(placed) < 2.0 * np.median(noise), (placed, noise)
 
 
-def test_a_log_without_the_valves_pressures_keeps_its_switches_halfway(cplant, tmp_path):
-    """Without P1 and P3 nothing tells a bracket's ticks apart: the switches stay
-    where the halfway rule puts them, and the replay is the halfway replay."""
+def test_a_log_without_the_signals_it_places_by_keeps_its_switches_halfway(cplant, tmp_path):
+    """Without the height and the pressures (edges.PLACE_SIGNALS) nothing tells a
+    bracket's ticks apart: the switches stay where the halfway rule puts them, and
+    the replay is the halfway replay."""
     nominal = next(s for s in bt.family_specs("misset") if s["form"] == "pipe_volume+30%")
     rig, run = acc_rig_logs(cplant, tmp_path, [20], dict(nominal, change=1.0))[0]
-    blind = replace(run, signals=dict(run.signals, p_pipe_pa=np.full(len(run.t_s), np.nan),
-                                      p_acc_pa=np.full(len(run.t_s), np.nan)))
+    blind = replace(run, signals=dict(run.signals, **{s: np.full(len(run.t_s), np.nan) for s in PLACE_SIGNALS}))
     moved = cplant.placed(rig, blind)
     rel = run.t_s - run.t_s[0]
     idx = nearest_index(rel, np.round(np.arange(0.0, rel[-1] + 0.005, 0.01), 6))

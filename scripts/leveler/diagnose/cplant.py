@@ -70,7 +70,7 @@ def floor_above_noise(run):
     """A log slower than the tick whose accumulator valve switches: replayed with its
     switches halfway the rig's own config leaves a median 4.3 times the logs' noise
     (1.25 against 0.29 on 30 effect-free logs), so its switches are placed
-    (CPlant.placed); even then 1.6 times (0.47; 900 lb rig logs 1.2 times), so a gap
+    (CPlant.placed); even then 1.1-1.4 times (edges.py; 900 lb rig logs 1.2 times), so a gap
     within a noise gap or so does not say no effect is there."""
     acc = run.commands.get("acc_valve") if getattr(run, "commands", None) else None
     t = getattr(run, "t_s", None)
