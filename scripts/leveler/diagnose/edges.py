@@ -27,8 +27,9 @@ and with each of the blind test's eight mis-set values on such logs (seeds
 by P1 and P3 over 0.3 s: a longer look at every signal places the switches
 nearer the truth and takes up less of a mis-set value, not more (the compressor's
 capacity -15 % the exception on the 1000 lb rig, 3.8 -> 2.4). The truth's own tick
-commands replay to the noise (0.25-0.30): what is left is the placement, greedy,
-one bracket at a time.
+commands replay to 0.25-0.56 (6 logs, from the start estimated from the log; the
+worst is that start): most of what is left is the placement, greedy, one bracket
+at a time.
 
 The compressor's switches stay halfway: its motor turns up over seconds (J/D
 2.5 s), so 10 ms of its switch moves little air, and P1 is where the
