@@ -56,19 +56,36 @@ def find_chromium():
     return None
 
 
+class BrowserLost(RuntimeError):
+    """Chromium's DevTools connection closed under us: the browser process died or the page
+    target went away. The message carries the process's state and the tail of its output."""
+
+
 class Browser:
     def __init__(self, chromium: str, profile: Path, width=1400, height=1500):
+        self.args = (chromium, profile, width, height)
         self.profile = profile
-        self.out = open(profile.parent / "chromium.out", "w")
+        self.out_path = profile.parent / f"{profile.name}.chromium.out"
+        self.out = open(self.out_path, "w")
         self.proc = subprocess.Popen([chromium, "--headless=new", "--no-sandbox", "--disable-gpu",
                                       "--disable-dev-shm-usage", "--no-first-run", "--remote-debugging-port=0",
                                       f"--user-data-dir={profile}", f"--window-size={width},{height}",
                                       "about:blank"], stdout=self.out, stderr=subprocess.STDOUT)
         port = self._devtools_port(timeout_s=30)
-        with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10) as r:
-            page = next(t for t in json.load(r) if t["type"] == "page")
+        # A page target of our own: the start-up about:blank tab may still be swapped for
+        # another target while Chromium settles, which closes a connection made to it.
+        req = urllib.request.Request(f"http://127.0.0.1:{port}/json/new?about:blank", method="PUT")
+        with urllib.request.urlopen(req, timeout=10) as r:
+            page = json.load(r)
         self.ws = websocket.create_connection(page["webSocketDebuggerUrl"], timeout=30)
         self.next_id = 0
+
+    def _lost(self, exc):
+        self.out.flush()
+        state = "still running" if self.proc.poll() is None else f"exited with {self.proc.returncode}"
+        tail = self.out_path.read_text(errors="replace")[-2000:]
+        return BrowserLost(f"Chromium's DevTools connection closed ({exc}); the browser is {state}; "
+                           f"{self.out_path} ends:\n{tail}")
 
     def _devtools_port(self, timeout_s):
         path = self.profile / "DevToolsActivePort"
@@ -83,9 +100,15 @@ class Browser:
 
     def call(self, method, **params):
         self.next_id += 1
-        self.ws.send(json.dumps({"id": self.next_id, "method": method, "params": params}))
+        try:
+            self.ws.send(json.dumps({"id": self.next_id, "method": method, "params": params}))
+        except (websocket.WebSocketConnectionClosedException, BrokenPipeError, ConnectionError) as exc:
+            raise self._lost(exc) from exc
         while True:
-            msg = json.loads(self.ws.recv())
+            try:
+                msg = json.loads(self.ws.recv())
+            except (websocket.WebSocketConnectionClosedException, ConnectionError) as exc:
+                raise self._lost(exc) from exc
             if msg.get("id") == self.next_id:
                 if "error" in msg:
                     raise RuntimeError(f"{method}: {msg['error']}")
@@ -116,9 +139,17 @@ class Browser:
         path.write_bytes(base64.b64decode(data))
         return path
 
+    def restart(self):
+        """This browser closed and a new one started in its place (a fresh profile beside the old)."""
+        self.close()
+        chromium, profile, width, height = self.args
+        Browser.__init__(self, chromium, profile.with_name(profile.name + "-again"), width, height)
+
     def close(self):
         try:
             self.ws.close()
+        except (websocket.WebSocketException, OSError):
+            pass                                    # a lost connection: the process is still ours to stop
         finally:
             self.proc.terminate()
             try:
