@@ -97,6 +97,27 @@ def test_calibration_names_are_read_loosely():
     json.dumps(bt.family_specs("misset"))
 
 
+def test_an_unsure_set_with_an_experiment_is_tried_as_a_user_would():
+    """The blind test runs the proposed experiment wherever the diagnosis says `unsure`
+    about two effects or more and proposes one (seed 25's thermal wall on the 1000 lb
+    accumulator rig: named area, set [area, thermal, sensor_lag]); a `likely` set, a set
+    with one effect, or one without an experiment is scored as named."""
+    exp = {"between": ["area", "thermal"], "ranked": [{"schedule": "step +200 lb for 6 s"}]}
+    unsure = {"level": "unsure", "set": ["area", "thermal", "sensor_lag"]}
+    assert bt.lookalike_set({"confidence": unsure, "experiment": exp}) == ["area", "thermal", "sensor_lag"]
+    assert bt.lookalike_set({"confidence": unsure, "experiment": None}) == []
+    assert bt.lookalike_set({"confidence": dict(unsure, level="likely"), "experiment": exp}) == []
+    pinned = {"level": "unsure", "set": ["friction", "not explained"]}
+    assert bt.lookalike_set({"confidence": pinned, "experiment": exp}) == []
+    values = {"level": "unsure", "set": ["calibration: pipe_volume", "calibration: spring_valve_cd_out"]}
+    assert bt.lookalike_set({"confidence": values, "experiment": exp}) == []
+    # what came first still decides: look-alikes, a rival, a hint against none
+    assert bt.lookalike_set({"cannot_tell_apart": ["leak", "friction"], "confidence": unsure,
+                             "experiment": exp}) == ["leak", "friction"]
+    assert bt.lookalike_set({"confidence": {"level": "unsure", "set": ["area", "none"]},
+                             "experiment": exp}) == ["area", "none"]
+
+
 def test_the_1000lb_accumulator_rig_runs_only_when_asked(cplant, tmp_path):
     """`--system 1000lb-accumulator` (the thesis's 1000 lb rig with its diaphragm
     accumulator, algorithm 2) lies outside the rotation, so every seed's cases stay

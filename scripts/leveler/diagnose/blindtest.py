@@ -13,8 +13,9 @@ rig with its diaphragm accumulator under algorithm 2) only when asked for, outsi
 rotation. The firmware reads the sensors
 with one count of noise, as on a rig (algorithm 2 then chatters at the charge
 limit). The label is sealed in a file the diagnosis never sees; the diagnosis
-runs as a separate process on the logs alone. When it reports look-alikes,
-the experiment it proposes is run on the same truth and the look-alikes are
+runs as a separate process on the logs alone. When it reports look-alikes
+(or says `unsure` of a set of two effects or more, with an experiment), the
+experiment it proposes is run on the same truth and the look-alikes are
 scored on it: the case counts as right only when that names the truth.
 Then: confusion matrix, hit rate, held-out shrink of the correctly named
 cases, false effects in `none` cases.
@@ -318,13 +319,17 @@ def diagnose_blind(folder, out, config, extra, runs_=("cal1", "cal2"), holdout=(
 
 def lookalike_set(d):
     """What a diagnosis says it cannot tell apart: its look-alike effects, an effect
-    and the calibration that explain the held-out runs alike (its `rival`), or no
+    and the calibration that explain the held-out runs alike (its `rival`), no
     effect and the one the logs hint at (confidence.hinted: the set [effect, "none"]
-    with an experiment)."""
+    with an experiment), or the effects of any other `unsure` set that comes with an
+    experiment (two at least): a user told "unsure" runs the experiment proposed."""
     rival = (d.get("calibration") or {}).get("rival")
     conf = d.get("confidence") or {}
-    hint = conf.get("set", []) if "none" in conf.get("set", []) and d.get("experiment") else []
-    return d.get("cannot_tell_apart") or ([rival["effect"], "calibration"] if rival else hint)
+    cset = conf.get("set", []) if d.get("experiment") else []
+    hint = cset if "none" in cset else []
+    unsure = [x for x in cset if x in fx.NAMES] if conf.get("level") == "unsure" else []
+    return (d.get("cannot_tell_apart") or ([rival["effect"], "calibration"] if rival else hint)
+            or (unsure if len(unsure) >= 2 else []))
 
 
 def run_experiment(sim, folder, d, case, params, system, kind, seed, extra, spec=None):
