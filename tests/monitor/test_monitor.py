@@ -100,15 +100,16 @@ def shown(text):
 def open_page(browser, url):
     """The page open and showing a reading. A browser lost on the way (its DevTools
     connection closed: nothing the page can do) is reported and replaced once."""
-    try:
+    def reading():
         browser.open(url)
-        shown = browser.wait_js(f"/height/.test({NOW_JS})", 30)
+        return browser.wait_js(f"/height/.test({NOW_JS})", 30)
+    try:
+        ok = reading()
     except cdp.BrowserLost as lost:
         print(f"open_page: {lost}\nopen_page: a new browser, once", file=sys.stderr)
         browser.restart()
-        browser.open(url)
-        shown = browser.wait_js(f"/height/.test({NOW_JS})", 30)
-    assert shown, "the page never showed a reading"
+        ok = reading()
+    assert ok, "the page never showed a reading"
 
 
 def test_read_only_page_trends_move(tmp_path, rig, browser):
