@@ -1,5 +1,6 @@
 """Helpers of the leveler-sweep tests: a study file, the command, the table."""
 import csv
+import os
 import subprocess
 import sys
 import time
@@ -32,7 +33,11 @@ def run(study, out, *extra, timeout=120):
 
 
 def start(study, out, *extra):
-    return subprocess.Popen(command(study, out, *extra), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    """The sweep as a process a test may kill: its temporary folders go under the test's
+    own folder (TMPDIR), since a process killed mid-point cannot remove its own."""
+    env = dict(os.environ, TMPDIR=str(Path(out).parent))
+    return subprocess.Popen(command(study, out, *extra), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env)
 
 
 def rows(out):

@@ -23,7 +23,9 @@ def _kill_a_busy_worker(c):
     raise AssertionError("no worker was running a point")
 
 
-def test_a_worker_killed_mid_sweep_every_point_once(tmp_path):
+def test_a_worker_killed_mid_sweep_every_point_once(tmp_path, monkeypatch):
+    # the killed worker cannot remove its point's temporary folder: it goes under tmp_path
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
     # 150 s runs: each point takes about 0.2 s, the kill lands mid-sweep
     study = write_study(tmp_path, charges=[100, 120], volumes=[25, 50, 75, 100], end_s=150)
     out = tmp_path / "dask"
