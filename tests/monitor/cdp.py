@@ -10,6 +10,7 @@ import json
 import os
 import shutil
 import subprocess
+import tempfile
 import time
 import urllib.request
 from pathlib import Path
@@ -67,10 +68,15 @@ class Browser:
         self.profile = profile
         self.out_path = profile.parent / f"{profile.name}.chromium.out"
         self.out = open(self.out_path, "w")
+        # Chromium keeps its singleton socket (and, with /dev/shm off, its shared memory) in
+        # TMPDIR and leaves the folders there: a short one of our own (a socket path is at most
+        # 107 bytes), removed by close()
+        self.tmp = tempfile.mkdtemp(prefix="leveler-chromium-")
         self.proc = subprocess.Popen([chromium, "--headless=new", "--no-sandbox", "--disable-gpu",
                                       "--disable-dev-shm-usage", "--no-first-run", "--remote-debugging-port=0",
                                       f"--user-data-dir={profile}", f"--window-size={width},{height}",
-                                      "about:blank"], stdout=self.out, stderr=subprocess.STDOUT)
+                                      "about:blank"], stdout=self.out, stderr=subprocess.STDOUT,
+                                     env=dict(os.environ, TMPDIR=self.tmp))
         port = self._devtools_port(timeout_s=30)
         # A page target of our own: the start-up about:blank tab may still be swapped for
         # another target while Chromium settles, which closes a connection made to it.
@@ -158,3 +164,4 @@ class Browser:
                 self.proc.kill()
                 self.proc.wait()
             self.out.close()
+            shutil.rmtree(self.tmp, ignore_errors=True)
