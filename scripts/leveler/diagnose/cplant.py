@@ -5,12 +5,14 @@ effects of the catalogue (effects.json). Configs are opened once per file
 version (engine.Engine.cached)."""
 import collections
 import glob
+import json
 import os
 from dataclasses import replace
 
 import numpy as np
 
 from . import edges
+from . import run_memo
 from . import effects as fx
 from .errors import DiagnoseInputError
 from .model import CLOSED_LOOP, Simulator, Trace
@@ -22,6 +24,11 @@ from leveler import engine, paths
 # the names --config takes: the checkout's host_sim/configs, else the installed package's copy
 CONFIG_DIR = paths.data("host_sim/configs", "configs")
 FINE_TICK_S = 0.01      # replay grid for coarse or jittered logs
+# The resolved config's sections behind each valve: while it stays shut nothing
+# of them reaches the pipe (plant_derivatives: a shut valve's flow is exactly 0,
+# and no other term couples them to P1), so they cannot move a replay's P1.
+BEHIND_VALVE = {"spring_valve": ("spring_valve", "spring", "platform", "hysteresis"),
+                "vent_valve": ("vent_valve",), "acc_valve": ("accumulator",)}
 OMEGA_WINDOW_S = 3.0    # the motor speed is fitted to P1 over at most this long
 
 
@@ -61,6 +68,26 @@ def nearest_index(rel, grid):
     return idx
 
 
+def run_tracks(run):
+    """The P1 the compressor's and the P2 the discharge's chatter regulate to (chatter_track)."""
+    return chatter_track(run), chatter_track(run, DISCHARGE, "p_spring_pa", trim=True)
+
+
+def fine_grid(run):
+    """A coarse log's 10 ms replay grid (CPlant._fine_inputs): times from the start,
+    the grid, each tick's nearest sample, the commands on the grid, the load on
+    the grid, and each sample's nearest tick."""
+    rel = run.t_s - run.t_s[0]
+    grid = np.round(np.arange(0.0, rel[-1] + FINE_TICK_S / 2, FINE_TICK_S), 6)
+    idx = nearest_index(rel, grid)
+    placed = getattr(run, "fine_commands", None)
+    if placed and all(len(v) >= len(grid) for v in placed.values()):    # a cut run keeps its start
+        cmds = {k: np.asarray(v[:len(grid)]) for k, v in placed.items()}
+    else:
+        cmds = {k: np.asarray(v)[idx] for k, v in run.commands.items()}
+    return rel, grid, idx, cmds, np.asarray(run.load_n)[idx], nearest_index(grid, rel)
+
+
 def is_fine(t_s, tick=FINE_TICK_S):
     rel = t_s - t_s[0]
     return len(rel) > 1 and np.allclose(np.diff(rel), tick, atol=1e-6)
@@ -88,6 +115,7 @@ class CPlant(Simulator):
         self._motor_cache = {}
         self._omega_cache = {}
         self._start_cache = collections.OrderedDict()
+        self._resolved = collections.OrderedDict()     # a config handle's resolved config (_window_config)
 
     def handle(self, config, effects_nominal=False, lib=None):
         """The config's open handle; DiagnoseInputError naming the file, line and field."""
@@ -150,33 +178,53 @@ class CPlant(Simulator):
         best, refined by a parabola. Otherwise the speed in balance for the
         compressor's duty (0 when it is off: a motor at rest). Returns (speed, shift)."""
         comp = run.commands.get("compressor") if run.commands else None
-        key = (config, run.path, hash(run.signals["p_pipe_pa"].tobytes()),
-               None if comp is None else hash(np.asarray(comp).tobytes()))
-        if key in self._omega_cache:
-            return self._omega_cache[key]
-        out = (self.motor_speed(config, init[2], duty) if np.isfinite(init[2]) else 0.0, 0.0)
         t = run.t_s
         n = int(np.searchsorted(t, t[0] + OMEGA_WINDOW_S))
         load_change = np.flatnonzero(np.abs(np.diff(run.load_n[:n])) > 1.0)
         n = int(load_change[0]) + 1 if load_change.size else n
         p1 = run.signals["p_pipe_pa"][:n]
-        if comp is not None and np.any(comp[:n]) and np.isfinite(p1).sum() > 10 and n > 10:
-            grid = np.linspace(0.0, max(self.motor_speed(config, init[2], 1.0), 1.0) * 1.5, 13)
-            cmds = {k: np.asarray(v[:n]) for k, v in run.commands.items()}
-            cost, shift = [], []
-            for w in grid:
-                r = self._call(config, t[:n], run.load_n[:n], cmds, 0, [], init + [w],
-                               effects_nominal=True).signals["p_pipe_pa"] - p1
-                shift.append(-float(np.nanmean(r)))
-                cost.append(float(np.nanvar(r)))
-            k = int(np.argmin(cost))
-            step = 0.0
-            if 0 < k < len(grid) - 1:
-                den = cost[k - 1] - 2 * cost[k] + cost[k + 1]
-                step = 0.5 * (cost[k - 1] - cost[k + 1]) / den if den > 0 else 0.0
-            out = (float(grid[k] + step * (grid[1] - grid[0])), shift[k])
+        if not (comp is not None and np.any(comp[:n]) and np.isfinite(p1).sum() > 10 and n > 10):
+            return self.motor_speed(config, init[2], duty) if np.isfinite(init[2]) else 0.0, 0.0
+        key = (self._window_config(config, run, n), run.path, hash(run.signals["p_pipe_pa"].tobytes()),
+               hash(np.asarray(comp).tobytes()))
+        if key in self._omega_cache:
+            return self._omega_cache[key]
+        grid = np.linspace(0.0, max(self.motor_speed(config, init[2], 1.0), 1.0) * 1.5, 13)
+        cmds = {k: np.asarray(v[:n]) for k, v in run.commands.items()}
+        cost, shift = [], []
+        for w in grid:
+            r = self._call(config, t[:n], run.load_n[:n], cmds, 0, [], init + [w],
+                           effects_nominal=True).signals["p_pipe_pa"] - p1
+            shift.append(-float(np.nanmean(r)))
+            cost.append(float(np.nanvar(r)))
+        k = int(np.argmin(cost))
+        step = 0.0
+        if 0 < k < len(grid) - 1:
+            den = cost[k - 1] - 2 * cost[k] + cost[k + 1]
+            step = 0.5 * (cost[k - 1] - cost[k + 1]) / den if den > 0 else 0.0
+        out = (float(grid[k] + step * (grid[1] - grid[0])), shift[k])
         self._omega_cache[key] = out
         return out
+
+    def _window_config(self, config, run, n):
+        """What of the config the start's replay (start_motor_speed, the nominal plant
+        over the run's first n samples) can depend on, as a string: the resolved
+        config (exact numbers) without its name and path, and without what lies
+        behind a valve the run keeps shut over those samples (BEHIND_VALVE). A
+        calibration writes a config per trial; the trials that move only values
+        behind a shut valve then share the replay's result, bit for bit."""
+        drop = {"config"}
+        for valve, sections in BEHIND_VALVE.items():
+            c = run.commands.get(valve) if run.commands else None
+            if c is not None and not np.any(np.asarray(c[:n])):
+                drop.update(sections)
+        h = self.handle(config, True)
+        hit = self._resolved.get(id(h))
+        if hit is None or hit[0] is not h:      # the handle is held: its id is not reused while cached
+            hit = self._resolved[id(h)] = (h, h.config_json())
+            while len(self._resolved) > self.START_CACHE:
+                self._resolved.popitem(last=False)
+        return json.dumps({k: v for k, v in hit[1].items() if k not in drop}, sort_keys=True)
 
     START_CACHE = 256
 
@@ -221,23 +269,17 @@ class CPlant(Simulator):
         if mode == CLOSED_LOOP:
             return self._closed_loop(config, run.t_s, run.load_n, kind, values, init,
                                      writes=getattr(run, "writes", None))
-        if is_fine(run.t_s):      # the tick's own log: every switch is there, replayed as is
+        if run_memo.of_run(run, "fine", lambda r: is_fine(r.t_s)):
+            # the tick's own log: every switch is there, replayed as is
             return self._call(config, run.t_s, run.load_n, run.commands, kind, values, init)
-        return self._replay_fine(config, run, kind, values, init, chatter_track(run),
-                                 chatter_track(run, DISCHARGE, "p_spring_pa", trim=True))
+        track, track2 = run_memo.of_run(run, "tracks", run_tracks)
+        return self._replay_fine(config, run, kind, values, init, track, track2)
 
     def _fine_inputs(self, run, track, track2):
         """A coarse log on the 10 ms replay grid: the grid, each tick's nearest sample,
         the commands switched halfway between samples (or run.fine_commands, placed),
         and the chatter tracks at the ticks."""
-        rel = run.t_s - run.t_s[0]
-        grid = np.round(np.arange(0.0, rel[-1] + FINE_TICK_S / 2, FINE_TICK_S), 6)
-        idx = nearest_index(rel, grid)
-        placed = getattr(run, "fine_commands", None)
-        if placed and all(len(v) >= len(grid) for v in placed.values()):    # a cut run keeps its start
-            cmds = {k: np.asarray(v[:len(grid)]) for k, v in placed.items()}
-        else:
-            cmds = {k: np.asarray(v)[idx] for k, v in run.commands.items()}
+        rel, grid, idx, cmds = run_memo.of_run(run, "grid", fine_grid)[:4]
         # the nearest sample's (already smoothed) value
         track, track2 = (None if x is None else x[idx] for x in (track, track2))
         return rel, grid, idx, cmds, track, track2
@@ -248,8 +290,8 @@ class CPlant(Simulator):
         back at the log's times; where a command chatters, regulated to its track
         instead (chatter_track)."""
         rel, grid, idx, cmds, track, track2 = self._fine_inputs(run, track, track2)
-        tr = self._call(config, grid, np.asarray(run.load_n)[idx], cmds, kind, values, init, track, track2=track2)
-        back = nearest_index(grid, rel)
+        load, back = run_memo.of_run(run, "grid", fine_grid)[4:]
+        tr = self._call(config, grid, load, cmds, kind, values, init, track, track2=track2)
         return Trace(run.t_s, {k: np.interp(rel, grid, v) for k, v in tr.signals.items()},
                      {k: v[back] for k, v in tr.commands.items()})
 
@@ -264,8 +306,7 @@ class CPlant(Simulator):
         if not (run.has_commands and len(run.t_s) > 2 and floor_above_noise(run)):
             return run
         run = replace(run, fine_commands=None)
-        track, track2 = chatter_track(run), chatter_track(run, DISCHARGE, "p_spring_pa", trim=True)
-        rel, grid, idx, cmds, tk, tk2 = self._fine_inputs(run, track, track2)
+        rel, grid, idx, cmds, tk, tk2 = self._fine_inputs(run, *run_tracks(run))
         load, init = np.asarray(run.load_n)[idx], self.start_state(config, run)
 
         def replay(c, end):

@@ -24,6 +24,7 @@ from scipy.stats import qmc
 
 from . import effects as fx
 from . import gap
+from . import run_memo
 from .effects import from_unit, to_unit
 from .design import noise_levels
 from .model import CLOSED_LOOP, REPLAY, make_simulator
@@ -117,15 +118,25 @@ def noise_gap(runs):
     return float(np.sqrt(np.mean(terms))) if terms else 0.0
 
 
+def _residual_plan(run):
+    """run_residual's stride and, per signal the run measures (gap.used_signals),
+    the logged values (a view: run_memo makes it read-only, not the run's array)
+    and where the strided samples are measured."""
+    stride = max(1, int(round(RESAMPLE_S / float(np.median(np.diff(run.t_s))))))
+    return stride, [(s, run.signals[s].view(), np.isfinite(run.signals[s][::stride])) for s in gap.used_signals(run)]
+
+
 def run_residual(run, trace):
     """Normalised residuals of one run; each run weighs the same whatever its length."""
     if hasattr(run, "residual_vector"):          # a features run (features.py)
         return run.residual_vector(trace)
-    stride = max(1, int(round(RESAMPLE_S / float(np.median(np.diff(run.t_s))))))
+    stride, plan = run_memo.of_run(run, "residual", _residual_plan)
     parts = []
-    for s, r in gap.residuals(run, trace).items():
-        x = r[::stride] / gap.SCALES[s]
-        measured = np.isfinite(run.signals[s][::stride])
+    for s, logged, measured in plan:
+        sim = trace.signals.get(s)
+        if sim is None:          # this simulator does not model the signal (gap.residuals)
+            continue
+        x = (sim - logged)[::stride] / gap.SCALES[s]
         # not measured: no information; measured but the simulation failed (NaN): as bad as it gets
         # a diverging simulation counts as failed, never as an overflow in the squares
         x = np.where(measured, np.where(np.isfinite(x), np.clip(x, -FAILED_RESIDUAL, FAILED_RESIDUAL),
