@@ -97,6 +97,49 @@ double plant_acc_volume_m3(const plant *pl)
     return pl->p.acc_volume_m3;
 }
 
+_Static_assert(PLANT_POW_DEGREE == 6, "plant_pow_inv_k's Estrin scheme is written for degree 6");
+
+double plant_pow_inv_k(const plant *pl, double r)
+{
+    double u = (r - pl->crit_ratio) * pl->pow_inv_k_scale;
+    int s = u < 0.0 ? 0 : u >= PLANT_POW_SEGMENTS ? PLANT_POW_SEGMENTS - 1 : (int)u;
+    double t = u - s - 0.5;
+    const double *c = pl->pow_inv_k_c[s];
+    /* Estrin's scheme: half the dependent steps of Horner's (this call sits on the derivatives' path) */
+    double t2 = t * t, t4 = t2 * t2;
+    return (c[0] + c[1] * t) + t2 * (c[2] + c[3] * t) + t4 * ((c[4] + c[5] * t) + t2 * c[6]);
+}
+
+/* One segment's polynomial in t = -1/2..1/2 (r = r0 + (t + 1/2) / scale, centred: smaller terms, less
+ * rounding): the Newton form through r^(1/k) at the Chebyshev nodes, expanded to powers of t. */
+static void pow_segment(double r0, double scale, double inv_k, double c[PLANT_POW_DEGREE + 1])
+{
+    enum { N = PLANT_POW_DEGREE + 1 };
+    double t[N], d[N], q[N] = {1.0};
+    for (int i = 0; i < N; i++) {
+        t[i] = -0.5 * cos((2 * i + 1) * PLANT_PI / (2 * N));
+        d[i] = pow(r0 + (t[i] + 0.5) / scale, inv_k);
+    }
+    for (int j = 1; j < N; j++)
+        for (int i = N - 1; i >= j; i--)
+            d[i] = (d[i] - d[i - 1]) / (t[i] - t[i - j]);
+    for (int i = 0; i < N; i++)
+        c[i] = 0.0;
+    for (int j = 0; j < N; j++) { /* c += d[j] q, then q *= (t - t[j]) */
+        for (int i = 0; i < N; i++)
+            c[i] += d[j] * q[i];
+        for (int i = N - 1; i >= 0; i--)
+            q[i] = (i > 0 ? q[i - 1] : 0.0) - t[j] * q[i];
+    }
+}
+
+static void pow_table(plant *pl)
+{
+    pl->pow_inv_k_scale = PLANT_POW_SEGMENTS / (1.0 - pl->crit_ratio);
+    for (int s = 0; s < PLANT_POW_SEGMENTS; s++)
+        pow_segment(pl->crit_ratio + s / pl->pow_inv_k_scale, pl->pow_inv_k_scale, pl->inv_k, pl->pow_inv_k_c[s]);
+}
+
 double plant_orifice_flow(const plant *pl, double cd_area_m2, double pu_pa, double pd_pa)
 {
     /* Eq. (8)/(9). Eq. (8) has the exponent 1/k on the pressure ratio; the
@@ -107,7 +150,7 @@ double plant_orifice_flow(const plant *pl, double cd_area_m2, double pu_pa, doub
     double r = pd_pa / pu_pa;
     if (r <= pl->crit_ratio)
         return cd_area_m2 * pl->flow_choked * pu_pa;
-    double r_inv_k = pow(r, pl->inv_k);   /* r^(1/k) */
+    double r_inv_k = plant_pow_inv_k(pl, r); /* r^(1/k) */
     double r_km1_k = r / r_inv_k;         /* r^((k-1)/k) */
     return cd_area_m2 * pl->flow_subsonic * pu_pa * r_inv_k * sqrt(1.0 - r_km1_k);
 }
@@ -227,6 +270,7 @@ void plant_init(plant *pl, const plant_params *p)
     double k = p->heat_ratio_k;
     pl->inv_k = 1.0 / k;
     pl->crit_ratio = pow(2.0 / (k + 1.0), k / (k - 1.0));
+    pow_table(pl);
     pl->rt = p->gas_constant_j_per_kg_k * p->temperature_k;
     pl->zn = p->compressibility * p->polytropic_n;
     /* reciprocals: the derivatives multiply (they run 4x per RK4 step) */
