@@ -97,62 +97,88 @@ double plant_acc_volume_m3(const plant *pl)
     return pl->p.acc_volume_m3;
 }
 
-_Static_assert(PLANT_POW_DEGREE == 6, "plant_pow_inv_k's Estrin scheme is written for degree 6");
+_Static_assert(PLANT_ORIFICE_DEGREE == 6, "plant_orifice_shape's Estrin scheme is written for degree 6");
 
-double plant_pow_inv_k(const plant *pl, double r)
+double plant_orifice_shape(const plant *pl, double r)
 {
-    double u = (r - pl->crit_ratio) * pl->pow_inv_k_scale;
-    int s = u < 0.0 ? 0 : u >= PLANT_POW_SEGMENTS ? PLANT_POW_SEGMENTS - 1 : (int)u;
+    double u = (r - pl->crit_ratio) * pl->orifice_scale;
+    /* a NaN ratio (a state blown up in a fit's wild trial) takes segment 0 and returns NaN, not a wild read */
+    int s = u > 0.0 ? (u < PLANT_ORIFICE_SEGMENTS ? (int)u : PLANT_ORIFICE_SEGMENTS - 1) : 0;
     double t = u - s - 0.5;
-    const double *c = pl->pow_inv_k_c[s];
+    const double *c = pl->orifice_c[s];
     /* Estrin's scheme: half the dependent steps of Horner's (this call sits on the derivatives' path) */
     double t2 = t * t, t4 = t2 * t2;
     return (c[0] + c[1] * t) + t2 * (c[2] + c[3] * t) + t4 * ((c[4] + c[5] * t) + t2 * c[6]);
 }
 
-/* One segment's polynomial in t = -1/2..1/2 (r = r0 + (t + 1/2) / scale, centred: smaller terms, less
- * rounding): the Newton form through r^(1/k) at the Chebyshev nodes, expanded to powers of t. */
-static void pow_segment(double r0, double scale, double inv_k, double c[PLANT_POW_DEGREE + 1])
+/* The shape at r in long double: r^(1/k) sqrt((1 - r^((k-1)/k)) / (1 - r)) times sqrt(2k/((k-1) R T)),
+ * the difference by expm1 (no cancellation near 1), its limit (k-1)/k at 1. */
+static long double orifice_shape_exact(long double r, long double k, long double rt)
 {
-    enum { N = PLANT_POW_DEGREE + 1 };
-    double t[N], d[N], q[N] = {1.0};
+    long double a = (k - 1.0L) / k;
+    long double ratio = r < 1.0L ? -expm1l(a * logl(r)) / (1.0L - r) : a;
+    return powl(r, 1.0L / k) * sqrtl(ratio * 2.0L * k / ((k - 1.0L) * rt));
+}
+
+/* One segment's polynomial in t = -1/2..1/2 (r = r0 + (t + 1/2) / scale, centred: smaller terms, less
+ * rounding): the Newton form through the shape at the Chebyshev nodes, expanded to powers of t, in long
+ * double and rounded once. */
+static void orifice_segment(double r0, double scale, double k, double rt, double c[PLANT_ORIFICE_DEGREE + 1])
+{
+    enum { N = PLANT_ORIFICE_DEGREE + 1 };
+    long double t[N], d[N], q[N] = {1.0L}, cl[N] = {0.0L};
     for (int i = 0; i < N; i++) {
-        t[i] = -0.5 * cos((2 * i + 1) * PLANT_PI / (2 * N));
-        d[i] = pow(r0 + (t[i] + 0.5) / scale, inv_k);
+        t[i] = -0.5L * cosl((2 * i + 1) * PLANT_PI / (2 * N));
+        d[i] = orifice_shape_exact(r0 + (t[i] + 0.5L) / scale, k, rt);
     }
     for (int j = 1; j < N; j++)
         for (int i = N - 1; i >= j; i--)
             d[i] = (d[i] - d[i - 1]) / (t[i] - t[i - j]);
-    for (int i = 0; i < N; i++)
-        c[i] = 0.0;
     for (int j = 0; j < N; j++) { /* c += d[j] q, then q *= (t - t[j]) */
         for (int i = 0; i < N; i++)
-            c[i] += d[j] * q[i];
+            cl[i] += d[j] * q[i];
         for (int i = N - 1; i >= 0; i--)
-            q[i] = (i > 0 ? q[i - 1] : 0.0) - t[j] * q[i];
+            q[i] = (i > 0 ? q[i - 1] : 0.0L) - t[j] * q[i];
     }
+    for (int i = 0; i < N; i++)
+        c[i] = (double)cl[i];
 }
 
-static void pow_table(plant *pl)
+/* The table depends on k and R T alone, and a diagnosis sets up some 15,000 plants with the same gas:
+ * the last one built is kept (per thread): building it in long double, about 80 us, was 4 % of a diagnosis. */
+static _Thread_local struct {
+    bool built;
+    double k, rt;
+    double c[PLANT_ORIFICE_SEGMENTS][PLANT_ORIFICE_DEGREE + 1];
+} last_table;
+
+static void orifice_table(plant *pl)
 {
-    pl->pow_inv_k_scale = PLANT_POW_SEGMENTS / (1.0 - pl->crit_ratio);
-    for (int s = 0; s < PLANT_POW_SEGMENTS; s++)
-        pow_segment(pl->crit_ratio + s / pl->pow_inv_k_scale, pl->pow_inv_k_scale, pl->inv_k, pl->pow_inv_k_c[s]);
+    double k = pl->p.heat_ratio_k;
+    pl->orifice_scale = PLANT_ORIFICE_SEGMENTS / (1.0 - pl->crit_ratio);
+    if (!last_table.built || last_table.k != k || last_table.rt != pl->rt) {
+        for (int s = 0; s < PLANT_ORIFICE_SEGMENTS; s++)
+            orifice_segment(pl->crit_ratio + s / pl->orifice_scale, pl->orifice_scale, k, pl->rt, last_table.c[s]);
+        last_table.k = k;
+        last_table.rt = pl->rt;
+        last_table.built = true;
+    }
+    memcpy(pl->orifice_c, last_table.c, sizeof pl->orifice_c);
 }
 
 double plant_orifice_flow(const plant *pl, double cd_area_m2, double pu_pa, double pd_pa)
 {
     /* Eq. (8)/(9). Eq. (8) has the exponent 1/k on the pressure ratio; the
      * program of Appendix B uses (k-1)/k in its solenoid and vent branches.
-     * We follow eq. (8): with 1/k the flow is continuous at the critical ratio. */
+     * We follow eq. (8): with 1/k the flow is continuous at the critical ratio.
+     * Subsonic: Cd A Pu sqrt(1 - r) times the shape (plant.h); the square
+     * root runs beside the shape's polynomial, not after it. */
     if (pu_pa <= pd_pa)
         return 0.0;
     double r = pd_pa / pu_pa;
     if (r <= pl->crit_ratio)
         return cd_area_m2 * pl->flow_choked * pu_pa;
-    double r_inv_k = plant_pow_inv_k(pl, r); /* r^(1/k) */
-    double r_km1_k = r / r_inv_k;         /* r^((k-1)/k) */
-    return cd_area_m2 * pl->flow_subsonic * pu_pa * r_inv_k * sqrt(1.0 - r_km1_k);
+    return cd_area_m2 * pu_pa * sqrt(1.0 - r) * plant_orifice_shape(pl, r);
 }
 
 double plant_motor_steady_speed(const plant_params *p, double p1_pa, double duty)
@@ -268,16 +294,14 @@ void plant_init(plant *pl, const plant_params *p)
     memset(pl, 0, sizeof *pl);
     pl->p = *p;
     double k = p->heat_ratio_k;
-    pl->inv_k = 1.0 / k;
     pl->crit_ratio = pow(2.0 / (k + 1.0), k / (k - 1.0));
-    pow_table(pl);
     pl->rt = p->gas_constant_j_per_kg_k * p->temperature_k;
+    orifice_table(pl);
     pl->zn = p->compressibility * p->polytropic_n;
     /* reciprocals: the derivatives multiply (they run 4x per RK4 step) */
     pl->inv_rt = 1.0 / pl->rt;
     pl->inv_inertia = 1.0 / p->motor_inertia_kg_m2;
     pl->zn_rt_per_v1 = pl->zn * pl->rt / p->pipe_volume_m3;
-    pl->flow_subsonic = sqrt(2.0 * k / ((k - 1.0) * pl->rt));
     pl->flow_choked = sqrt(k / pl->rt) * pow(2.0 / (k + 1.0), (k + 1.0) / (2.0 * (k - 1.0)));
     pl->spring_valve_area_m2 = PLANT_PI / 4.0 * p->spring_valve_diameter_m * p->spring_valve_diameter_m;
     pl->vent_valve_area_m2 = PLANT_PI / 4.0 * p->vent_valve_diameter_m * p->vent_valve_diameter_m;

@@ -201,11 +201,14 @@ typedef struct {
     double acc_valve;    /* pipe -> accumulator (+) */
 } plant_flows;
 
-/* The orifice law's r^(1/k), the hottest call of a simulation (a quarter of a diagnosis's time in libm's
- * pow), is a degree-6 polynomial on each of 32 equal segments of the subsonic ratios, interpolated at
- * Chebyshev nodes when the plant is set up: within 3 ULP of pow (tests/sim/test_plant.c), 3x faster. */
-#define PLANT_POW_SEGMENTS 32
-#define PLANT_POW_DEGREE 6
+/* The subsonic orifice law, the hottest call of a simulation, is Cd A Pu sqrt(1 - r) times a smooth
+ * shape of the pressure ratio r, r^(1/k) sqrt((1 - r^((k-1)/k)) / (1 - r)) sqrt(2k/((k-1) R T)): one
+ * division, and a square root beside the polynomial, where the law as written takes two divisions and a
+ * square root after r^(1/k) (libm's pow: once a quarter of a diagnosis's time). The shape is a degree-6 polynomial on each of 32 equal
+ * segments of the subsonic ratios, interpolated at Chebyshev nodes when the plant is set up; the flow is
+ * within a few ULP of the law worked in long double (tests/sim/test_plant.c). */
+#define PLANT_ORIFICE_SEGMENTS 32
+#define PLANT_ORIFICE_DEGREE 6
 
 typedef struct {
     plant_params p;
@@ -222,11 +225,9 @@ typedef struct {
     const plant_hysteresis_band *band;
     /* constants derived from p (plant_init) */
     double crit_ratio;        /* (2/(k+1))^(k/(k-1)) */
-    double inv_k;
-    /* r^(1/k) over the subsonic ratios [crit_ratio, 1], piecewise (plant_pow_inv_k) */
-    double pow_inv_k_scale;   /* segments per unit of r */
-    double pow_inv_k_c[PLANT_POW_SEGMENTS][PLANT_POW_DEGREE + 1];
-    double flow_subsonic;     /* sqrt(2k/((k-1) R T)), per (Cd A Pu) */
+    /* the orifice law's shape over the subsonic ratios [crit_ratio, 1], piecewise (plant_orifice_shape) */
+    double orifice_scale;     /* segments per unit of r */
+    double orifice_c[PLANT_ORIFICE_SEGMENTS][PLANT_ORIFICE_DEGREE + 1];
     double flow_choked;       /* sqrt(k/(R T)) (2/(k+1))^((k+1)/(2(k-1))) */
     double spring_valve_area_m2, vent_valve_area_m2, acc_valve_area_m2;
     double rt;                /* R T */
@@ -235,8 +236,8 @@ typedef struct {
     double zn_rt_per_v1;      /* Z n R T / V1 */
 } plant;
 
-/* r^(1/k) for crit_ratio <= r <= 1 (outside, clamped to the end segments' polynomials). */
-double plant_pow_inv_k(const plant *pl, double r);
+/* The shape for crit_ratio <= r <= 1 (outside, the end segments' polynomials), s/m (kg/s per Pa m^2). */
+double plant_orifice_shape(const plant *pl, double r);
 
 /* State = the params' initial state, inputs all off at the initial load of 0. */
 void plant_init(plant *pl, const plant_params *p);
