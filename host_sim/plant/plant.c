@@ -97,9 +97,10 @@ double plant_acc_volume_m3(const plant *pl)
     return pl->p.acc_volume_m3;
 }
 
-_Static_assert(PLANT_ORIFICE_DEGREE == 6, "plant_orifice_shape's Estrin scheme is written for degree 6");
+_Static_assert(PLANT_ORIFICE_DEGREE == 6, "orifice_shape's Estrin scheme is written for degree 6");
 
-double plant_orifice_shape(const plant *pl, double r)
+/* The shape for crit_ratio <= r <= 1 (outside, the end segments' polynomials), s/m (kg/s per Pa m^2). */
+static double orifice_shape(const plant *pl, double r)
 {
     double u = (r - pl->crit_ratio) * pl->orifice_scale;
     /* a NaN ratio (a state blown up in a fit's wild trial) takes segment 0 and returns NaN, not a wild read */
@@ -178,7 +179,7 @@ double plant_orifice_flow(const plant *pl, double cd_area_m2, double pu_pa, doub
     double r = pd_pa / pu_pa;
     if (r <= pl->crit_ratio)
         return cd_area_m2 * pl->flow_choked * pu_pa;
-    return cd_area_m2 * pu_pa * sqrt(1.0 - r) * plant_orifice_shape(pl, r);
+    return cd_area_m2 * pu_pa * sqrt(1.0 - r) * orifice_shape(pl, r);
 }
 
 double plant_motor_steady_speed(const plant_params *p, double p1_pa, double duty)

@@ -225,7 +225,7 @@ typedef struct {
     const plant_hysteresis_band *band;
     /* constants derived from p (plant_init) */
     double crit_ratio;        /* (2/(k+1))^(k/(k-1)) */
-    /* the orifice law's shape over the subsonic ratios [crit_ratio, 1], piecewise (plant_orifice_shape) */
+    /* the orifice law's shape over the subsonic ratios [crit_ratio, 1], piecewise (orifice_shape, plant.c) */
     double orifice_scale;     /* segments per unit of r */
     double orifice_c[PLANT_ORIFICE_SEGMENTS][PLANT_ORIFICE_DEGREE + 1];
     double flow_choked;       /* sqrt(k/(R T)) (2/(k+1))^((k+1)/(2(k-1))) */
@@ -235,9 +235,6 @@ typedef struct {
     double inv_rt, inv_inertia;
     double zn_rt_per_v1;      /* Z n R T / V1 */
 } plant;
-
-/* The shape for crit_ratio <= r <= 1 (outside, the end segments' polynomials), s/m (kg/s per Pa m^2). */
-double plant_orifice_shape(const plant *pl, double r);
 
 /* State = the params' initial state, inputs all off at the initial load of 0. */
 void plant_init(plant *pl, const plant_params *p);
