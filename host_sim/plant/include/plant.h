@@ -204,9 +204,10 @@ typedef struct {
 /* The subsonic orifice law, the hottest call of a simulation, is Cd A Pu sqrt(1 - r) times a smooth
  * shape of the pressure ratio r, r^(1/k) sqrt((1 - r^((k-1)/k)) / (1 - r)) sqrt(2k/((k-1) R T)): one
  * division, and a square root beside the polynomial, where the law as written takes two divisions and a
- * square root after r^(1/k) (libm's pow: once a quarter of a diagnosis's time). The shape is a degree-6 polynomial on each of 32 equal
- * segments of the subsonic ratios, interpolated at Chebyshev nodes when the plant is set up; the flow is
- * within a few ULP of the law worked in long double (tests/sim/test_plant.c). */
+ * square root after r^(1/k) (libm's pow: once a quarter of a diagnosis's time). The shape is a degree-6
+ * polynomial on each of 32 equal segments of the subsonic ratios, interpolated at Chebyshev nodes when
+ * the plant is set up; the flow is within a few ULP of the law worked in long double
+ * (tests/sim/test_plant.c). */
 #define PLANT_ORIFICE_SEGMENTS 32
 #define PLANT_ORIFICE_DEGREE 6
 
