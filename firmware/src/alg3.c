@@ -118,6 +118,8 @@ static void start_move(leveler_alg3 *a, int8_t dir, int64_t off_um, uint32_t now
     a->assist = false;
     a->move_from_um = leveler_alg3_height_um(&a->filter);
     a->retry = false;
+    a->topup = false;
+    a->topups = 0;
     a->out_dir = 0; /* the departure is being dealt with: a new one must be seen afresh */
     a->out_area_um_ms = 0;
     a->fine = fine;
@@ -209,7 +211,33 @@ static bool assist(const leveler_alg3 *a, const leveler_settings *set, bool up, 
     return (int64_t)line - p_spring_pa > set->alg3_gap_pa / 2; /* no line (0): never */
 }
 
-/* Filling or venting: close when leveler_alg3_close_now() says so, or a burst is done (a probe: probe_done). */
+/* Whether the line of a move the up (or down) way at h is the present load's: learnt in this move or
+ * since the last load change (leveler_alg3_line_estimate then reads the setting), not estimated. */
+static bool line_known(const leveler_alg3 *a, const leveler_settings *set, bool up)
+{
+    const leveler_alg3_lines *l = &a->watch.lines;
+    return (l->line_fresh || l->lines_valid) && (up ? set->alg3_up_pa : set->alg3_down_pa) != 0;
+}
+
+/* A top-up (short_coast) closes where the coast stiffness the short coast before it showed lands
+ * the platform halfway from the target to the band's upper edge, with no stretch (that stiffness is
+ * this rig's at this load), or at the target; at once when the line is no longer the present load's
+ * (a load change in the move). Halfway: the line's slope is a setting, and an error in it moves the
+ * landing as far as the top-up carries the platform; short costs a burst, long the gap. */
+static bool topup_done(const leveler_alg3 *a, const leveler_settings *set, int32_t h, int32_t p_spring_pa,
+                       int32_t line)
+{
+    if (line == 0 || !line_known(a, set, false)) {
+        return true;
+    }
+    int32_t target = leveler_alg3_target_um(set);
+    int32_t aim = (int32_t)(((int64_t)target + set->band_upper_um) / 2);
+    int32_t rest = leveler_alg3_line_rest_um(false, h, p_spring_pa, line, a->topup_k_pa_per_mm);
+    return h <= target || rest <= aim;
+}
+
+/* Filling or venting: close when leveler_alg3_close_now() says so, or a burst is done (a probe:
+ * probe_done; a top-up: topup_done). */
 static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int32_t p_spring_pa, uint32_t now_ms)
 {
     bool up = a->phase == LEVELER_ALG3_FILLING;
@@ -219,6 +247,7 @@ static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int3
     /* the line broke away from in this move is the present load's: its coast needs no stretch */
     bool sure = a->watch.lines.line_fresh;
     bool done = a->probe != LEVELER_ALG3_PROBE_NONE ? probe_done(a, up)
+                : a->topup                          ? topup_done(a, set, h, p_spring_pa, line)
                                                     : leveler_alg3_close_now(set, up, h,
                                                                              leveler_alg3_prediction_rate(&a->filter),
                                                                              p_spring_pa, line, sure);
@@ -229,6 +258,10 @@ static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int3
     }
     if (done || burst) {
         leveler_alg3_note_close(&a->watch, &a->filter, up ? 1 : -1, p_spring_pa, line);
+        a->close_line_known = line != 0 && line_known(a, set, up);
+        a->coast_um[0] = h; /* the coast's first height: the close's */
+        a->coast_samples = 1;
+        a->coast_rest_valid = false;
         enter(a, LEVELER_ALG3_SETTLING, now_ms);
     }
 }
@@ -242,6 +275,7 @@ static leveler_alg3_view learner_view(const leveler_alg3 *a)
     v.settling = a->phase == LEVELER_ALG3_SETTLING;
     v.commissioning = a->commissioning;
     v.probe = a->probe != LEVELER_ALG3_PROBE_NONE;
+    v.topup = a->topup;
     v.move_from_um = a->move_from_um;
     v.probe_moved_um = a->probe_moved_um;
     return v;
@@ -263,9 +297,78 @@ void leveler_alg3_probe_learn(leveler_alg3 *a, const leveler_settings *set, leve
     leveler_alg3_forget_close(&a->watch);
 }
 
+/* The coast stiffness (Pa/mm) a coast shows that will rest at rest_um: the excess over its line at
+ * the close over the travel from there; 0 when the close's line was not the present load's, there
+ * was no excess, the travel is under LEVELER_ALG3_MOVED_UM or the stiffness is LEVELER_ALG3_K_FACTOR
+ * off the learnt one (a coast a load change disturbed). */
+static int32_t coast_k(const leveler_alg3 *a, const leveler_settings *set, int32_t rest_um)
+{
+    const leveler_alg3_watch *w = &a->watch;
+    bool up = w->close_dir > 0;
+    int64_t excess = up ? (int64_t)w->close_p_spring_pa - w->close_line_pa
+                        : (int64_t)w->close_line_pa - w->close_p_spring_pa;
+    int64_t travel = up ? (int64_t)rest_um - w->close_height_um : (int64_t)w->close_height_um - rest_um;
+    if (!a->close_line_known || excess <= 0 || travel < LEVELER_ALG3_MOVED_UM) {
+        return 0;
+    }
+    int64_t k = leveler_div_round_i64(excess * 1000, travel);
+    int64_t old = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
+    bool off = k * LEVELER_ALG3_K_FACTOR < old || k > old * LEVELER_ALG3_K_FACTOR;
+    return (off || k < LEVELER_ALG3_K_MIN_PA_PER_MM || k > LEVELER_ALG3_K_MAX_PA_PER_MM) ? 0 : (int32_t)k;
+}
+
+/* Samples the coast's height since the close every LEVELER_ALG3_COAST_SAMPLE_MS (the last four,
+ * the first the close's) and, on a sample that shows a first-order coast, extrapolates where it will
+ * rest (leveler_alg3_coast_rest) into coast_rest_um (coast_rest_valid: the last sample showed one). */
+static void sample_coast(leveler_alg3 *a, int32_t h, uint32_t now_ms)
+{
+    if (now_ms - a->phase_start_ms < (uint32_t)a->coast_samples * LEVELER_ALG3_COAST_SAMPLE_MS) {
+        return;
+    }
+    if (a->coast_samples >= 4u) {
+        memmove(&a->coast_um[0], &a->coast_um[1], 3u * sizeof(a->coast_um[0]));
+    }
+    a->coast_um[a->coast_samples >= 4u ? 3u : a->coast_samples] = h;
+    a->coast_samples = (uint8_t)(a->coast_samples < UINT8_MAX ? a->coast_samples + 1u : UINT8_MAX);
+    a->coast_rest_valid = a->coast_samples >= 4u && a->watch.close_dir != 0 &&
+                          leveler_alg3_coast_rest(a->coast_um, a->watch.close_dir, &a->coast_rest_um);
+}
+
+/* A vent's coast that will rest short of the band (sample_coast) is topped up at once instead of
+ * after it has crept to rest (8 s on the 1000 lb rig, whose damping down is 16 times the 900 lb
+ * rig's): the vent again, closing on the coast stiffness this coast shows (coast_k, topup_done).
+ * Only when the extrapolation puts the rest more than half the band above it (a rest put just
+ * outside may lie inside); after a close on the present load's line (the excess it coasts on is
+ * known); never for a probe; at most LEVELER_ALG3_TOPUPS_MAX times per departure. Not a fill's: a
+ * rising coast softens as P2 falls and its extrapolation falls short of its rest, so a top-up there
+ * could carry the platform through the band (seen on the 900 lb diaphragm's random loads); a falling
+ * one's overshoots its rest, and a vent's top-up errs short. True: a top-up started. */
+static bool short_coast(leveler_alg3 *a, const leveler_settings *set, uint32_t now_ms)
+{
+    int64_t band = (int64_t)set->band_upper_um - set->band_lower_um;
+    if (!a->coast_rest_valid || a->probe != LEVELER_ALG3_PROBE_NONE ||
+        a->watch.close_dir >= 0 || a->topups >= LEVELER_ALG3_TOPUPS_MAX ||
+        a->coast_rest_um <= (int64_t)set->band_upper_um + band / 2) {
+        return false;
+    }
+    int32_t k = coast_k(a, set, a->coast_rest_um);
+    if (k == 0) {
+        return false;
+    }
+    uint8_t topups = a->topups;
+    leveler_alg3_forget_close(&a->watch);
+    start_move(a, 1, (int64_t)a->coast_rest_um - set->band_upper_um, now_ms);
+    a->fine = false; /* sized by the coast's stiffness, not in bursts */
+    a->topup = true;
+    a->topups = (uint8_t)(topups + 1u);
+    a->topup_k_pa_per_mm = k;
+    return true;
+}
+
 /* Valves closed until the platform is at rest (or alg3_settle_ms); then the
  * coast is learnt from. A fast motion against the move just closed is a load
- * change and is acted on at once. */
+ * change and is acted on at once; a vent's coast that will rest short of the
+ * band is topped up at once (short_coast). */
 static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms,
                      leveler_settings *learnt, bool *changed)
 {
@@ -273,6 +376,10 @@ static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t h, ui
     if (fast != 0 && fast == -a->watch.close_dir) {
         leveler_alg3_forget_close(&a->watch);
         start_move(a, fast, INT32_MAX, now_ms);
+        return;
+    }
+    sample_coast(a, h, now_ms);
+    if (short_coast(a, set, now_ms)) {
         return;
     }
     uint32_t in_phase = now_ms - a->phase_start_ms;

@@ -90,18 +90,39 @@ int32_t leveler_alg3_line_estimate(const leveler_alg3_lines *lines, const levele
     return leveler_sat_i32((int64_t)p + (up ? set->alg3_gap_pa : -set->alg3_gap_pa));
 }
 
-/* Rest height if the valves closed now, from the pressure: the excess over the
- * up line (or under the down line) carries the platform alg3_coast_k_up/down
- * Pa per mm. line_pa 0 (unknown) or no excess: h. */
-static int32_t line_prediction(const leveler_settings *set, bool up, int32_t h, int32_t p_spring_pa, int32_t line_pa)
+int32_t leveler_alg3_line_rest_um(bool up, int32_t h, int32_t p_spring_pa, int32_t line_pa, int32_t k_pa_per_mm)
 {
     int64_t excess = up ? (int64_t)p_spring_pa - line_pa : (int64_t)line_pa - p_spring_pa;
-    if (line_pa == 0 || excess <= 0) {
+    if (line_pa == 0 || excess <= 0 || k_pa_per_mm <= 0) {
         return h;
     }
-    int32_t k = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
-    int64_t travel_um = leveler_div_round_i64(excess * 1000, k);
+    int64_t travel_um = leveler_div_round_i64(excess * 1000, k_pa_per_mm);
     return leveler_sat_i32(up ? (int64_t)h + travel_um : (int64_t)h - travel_um);
+}
+
+/* The line prediction with the learnt coast stiffness of the move's direction. */
+static int32_t line_prediction(const leveler_settings *set, bool up, int32_t h, int32_t p_spring_pa, int32_t line_pa)
+{
+    int32_t k = up ? set->alg3_coast_k_up_pa_per_mm : set->alg3_coast_k_down_pa_per_mm;
+    return leveler_alg3_line_rest_um(up, h, p_spring_pa, line_pa, k);
+}
+
+bool leveler_alg3_coast_rest(const int32_t h[4], int8_t dir, int32_t *rest_um)
+{
+    int64_t sign = dir < 0 ? -1 : 1;
+    int64_t d1 = ((int64_t)h[1] - h[0]) * sign, d2 = ((int64_t)h[2] - h[1]) * sign, d3 = ((int64_t)h[3] - h[2]) * sign;
+    if (d3 < LEVELER_ALG3_COAST_STEP_MIN_UM || d2 <= d3 || d1 <= d2 || d1 > INT32_MAX || 2 * d2 < d1) {
+        return false; /* not moving the dir way, not slowing, a fast stop, or a jump no platform makes */
+    }
+    /* the same ratio twice: |d3/d2 - d2/d1| <= d2/d1 / 8, i.e. |d3 d1 - d2^2| <= d2^2 / 8 (products
+     * < 2^62; an integer is over the quotient exactly when it is over its floor) */
+    int64_t mismatch = d3 * d1 - d2 * d2;
+    if ((mismatch < 0 ? -mismatch : mismatch) > d2 * d2 / LEVELER_ALG3_COAST_RATIO_TOL) {
+        return false;
+    }
+    int64_t more = leveler_div_round_i64(d3 * d3, d2 - d3);
+    *rest_um = leveler_sat_i32((int64_t)h[3] + sign * more);
+    return true;
 }
 
 /* A prediction with its travel stretched by EARLY_NUM/EARLY_DEN (an estimate's hedge). */

@@ -278,7 +278,7 @@ void leveler_alg3_learn(leveler_alg3_watch *w, const leveler_alg3_view *v, const
         }
         /* a probe closes on the first millimetre, before the rate window sees the motion: its settle's */
         bool probed = v->probe && v->settling && w->close_dir == dir;
-        bool breaks_away = w->motion == 0 && (v->valves_dir == dir || probed);
+        bool breaks_away = w->motion == 0 && (v->valves_dir == dir || probed) && !v->topup;
         if (learn && breaks_away) {
             int32_t p_break = p_spring_at_start(w, f);
             learn_gap(w, f, set, dir, p_break, learnt, changed);

@@ -248,26 +248,186 @@ static void test_settle_times_out(void **state)
     assert_in_range(now - closed, set.alg3_settle_ms, set.alg3_settle_ms + 20);
 }
 
-/* A vent closes on the down line: P2 far enough under the learnt line coasts to the target. */
-static void test_vent_closes_on_line(void **state)
+/* A vent from UPPER + above_um on the learnt down line (600 kPa at the target), P2 lowered 100 Pa
+ * a tick from the line until it closes; returns the tick of the close, *h_c and *p_c where it closed. */
+static uint32_t vent_to_close(int32_t above_um, int32_t *h_c, int32_t *p_c)
 {
-    (void)state;
     set.alg3_down_pa = 600000;
     a.watch.lines.lines_valid = true;
-    int32_t h = UPPER_UM + 2540;
+    int32_t h = UPPER_UM + above_um;
     hold(h, 100);
     assert_int_equal(a.phase, LEVELER_ALG3_VENTING);
-    /* excess needed: (h - target) * k_down / 1000 / (5/4) under the line at h */
-    int32_t line = leveler_alg3_line_estimate(&a.watch.lines, &set, false, h);
-    assert_int_equal(line, 600000 + (int32_t)lround((h - TARGET_UM) / 1000.0 * set.alg3_line_slope_pa_per_mm));
-    int32_t p2 = line;
+    int32_t p2 = leveler_alg3_line_estimate(&a.watch.lines, &set, false, h);
     while (a.phase == LEVELER_ALG3_VENTING && p2 > 200000) {
         p2 -= 100;
         tick3(h, p2, 101325);
     }
     assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    *h_c = h;
+    *p_c = p2;
+    return now;
+}
+
+/* A vent closes on the down line: P2 far enough under the learnt line coasts to the target. */
+static void test_vent_closes_on_line(void **state)
+{
+    (void)state;
+    int32_t h, p2;
+    vent_to_close(2540, &h, &p2);
+    /* excess needed: (h - target) * k_down / 1000 / (5/4) under the line at h */
+    int32_t line = leveler_alg3_line_estimate(&a.watch.lines, &set, false, h);
+    assert_int_equal(line, 600000 + (int32_t)lround((h - TARGET_UM) / 1000.0 * set.alg3_line_slope_pa_per_mm));
     double need = (h - TARGET_UM) / 1000.0 * set.alg3_coast_k_down_pa_per_mm * 4.0 / 5.0;
     assert_in_range(line - p2, (int32_t)need - 200, (int32_t)need + 200);
+}
+
+/* The plant after a vent's close, as the line model has it: a first-order coast (tau_ms) from *h to
+ * the rest where P2 meets the down line, P2 there k_pa_per_mm under the line per mm still to go; each
+ * tick the vent is open takes 100 Pa more, which moves the rest 100 / k mm down. Runs `ticks` ticks
+ * (or, until_closed, until a vent that opened has closed again); counts the vent's ticks and the
+ * first one's time from t0. Returns the true rest (um). */
+static double coast(double rest_um, double k_pa_per_mm, double tau_ms, double *h, uint32_t t0, unsigned ticks,
+                    bool until_closed, unsigned *vent_at, unsigned *vent_ticks)
+{
+    for (unsigned i = 0; i < ticks; i++) {
+        if (out.vent_valve) {
+            rest_um -= 100.0 * 1000.0 / k_pa_per_mm;
+            if (*vent_ticks == 0u) {
+                *vent_at = now - t0;
+            }
+            (*vent_ticks)++;
+        } else if (until_closed && *vent_ticks > 0u) {
+            break;
+        }
+        *h = rest_um + (*h - rest_um) * exp(-10.0 / tau_ms);
+        /* the plant's down line: where vent_to_close's vent found it (the controller's may move) */
+        double line = 600000.0 + (*h - TARGET_UM) * set.alg3_line_slope_pa_per_mm / 1000.0;
+        tick3((int32_t)lround(*h), (int32_t)lround(line - k_pa_per_mm * (*h - rest_um) / 1000.0), 101325);
+    }
+    return rest_um;
+}
+
+/* A vent whose coast (first order, tau 3.6 s, as on the 1000 lb rig) will rest 3 mm above the band
+ * is topped up once four heights 500 ms apart show it, before it has crept to rest, and the top-up
+ * closes where the stiffness that coast showed lands it in the band: this rig's is 540 Pa/mm, the
+ * controller's learnt one 330. */
+static void test_short_vent_coast_topped_up(void **state)
+{
+    (void)state;
+    int32_t h_c, p_c;
+    uint32_t t0 = vent_to_close(20000, &h_c, &p_c);
+    int32_t line_c = leveler_alg3_line_estimate(&a.watch.lines, &set, false, h_c);
+    double k = 540.0, rest = h_c - (line_c - p_c) * 1000.0 / k, h = h_c;
+    assert_true(rest > UPPER_UM + 2540.0 + 2000.0); /* short by 2 mm more than half the band */
+    unsigned at = 0, ticks = 0;
+    rest = coast(rest, k, 3600.0, &h, t0, 1000, true, &at, &ticks);
+    /* the fourth sample 1.5 s after the close (the valves' 1 s off time is over by then) */
+    assert_in_range(at, 1500, 1520);
+    assert_int_equal(a.topups, 1);
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    /* the top-up aims halfway from the target to the upper edge and lands within 1 mm of that: the
+     * extrapolated stiffness 0.6 % off, a tick's 100 Pa (0.19 mm), the filter's lag (0.1 mm at 3 mm/s) */
+    int32_t aim = (TARGET_UM + UPPER_UM) / 2;
+    print_message("short vent coast: the top-up lands at %.0f um, aimed at %d\n", rest, aim);
+    assert_in_range((int32_t)lround(rest), aim - 1000, aim + 1000);
+}
+
+/* No top-up for a vent's coast that will rest in the band, nor for one that stops fast (steps
+ * shrinking by 1/4, then 1/8: a platform stopped by its momentum against its line), nor for a
+ * fill's short coast: each settles as before. */
+static void test_no_topup_in_band_fast_or_fill(void **state)
+{
+    (void)state;
+    int32_t h_c, p_c;
+    uint32_t t0 = vent_to_close(20000, &h_c, &p_c);
+    int32_t line_c = leveler_alg3_line_estimate(&a.watch.lines, &set, false, h_c);
+    double rest = UPPER_UM - 1000.0, h = h_c;
+    unsigned at = 0, ticks = 0;
+    coast(rest, (line_c - p_c) * 1000.0 / (h_c - rest), 3600.0, &h, t0, 300, false, &at, &ticks);
+    assert_int_equal(ticks, 0); /* 3 s: three extrapolations after the fourth sample */
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    assert_int_equal(a.topups, 0);
+    /* fast: tau 0.35 s (a step ratio of 1/4 per 500 ms) to a rest above the band */
+    setup(NULL);
+    t0 = vent_to_close(20000, &h_c, &p_c);
+    rest = UPPER_UM + 3000.0;
+    h = h_c;
+    coast(rest, (line_c - p_c) * 1000.0 / (h_c - rest), 350.0, &h, t0, 160, false, &at, &ticks);
+    assert_int_equal(ticks, 0); /* past the fourth sample (1.5 s): still settling, as before */
+    assert_int_equal(a.topups, 0);
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    /* a fill's coast short of the band: rising to rest 3 mm under it, tau 3.6 s */
+    setup(NULL);
+    set.alg3_up_pa = 700000;
+    a.watch.lines.lines_valid = true;
+    int32_t h_f = LOWER_UM - 20000, p2 = leveler_alg3_line_estimate(&a.watch.lines, &set, true, h_f);
+    hold(h_f, 100);
+    while (a.phase == LEVELER_ALG3_FILLING && p2 < 900000) {
+        p2 += 100;
+        tick3(h_f, p2, 101325);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    double hf = h_f;
+    for (unsigned i = 0; i < 300 && a.phase == LEVELER_ALG3_SETTLING; i++) {
+        hf = (LOWER_UM - 3000.0) + (hf - (LOWER_UM - 3000.0)) * exp(-10.0 / 3600.0);
+        tick3((int32_t)lround(hf), p2, 101325);
+        assert_true(all_off());
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+}
+
+/* Double reference of the coast extrapolation: realistic coasts (a ratio 0.3..0.95 per step, first
+ * steps 0.1..40 mm, a few um of noise, either way, some at the int32 edge the coast heads for) and
+ * arbitrary int32 heights: the same coasts accepted as by the predicates in long double, and the
+ * rest within 0.5 um (its one rounding) of the long double extrapolation, saturated to int32. */
+static void test_coast_rest_against_double(void **state)
+{
+    (void)state;
+    uint32_t s = 1234u;
+#define RND(lo, hi) ((s = s * 1664525u + 1013904223u), (lo) + (int64_t)((s >> 8) % (uint32_t)((hi) - (lo) + 1)))
+    unsigned accepted = 0, saturated = 0;
+    for (unsigned i = 0; i < 400000; i++) {
+        int32_t h[4];
+        int8_t dir = RND(0, 1) != 0 ? 1 : -1;
+        if (i % 2u == 0u) {
+            double q = (double)RND(300, 950) / 1000.0, d = (double)RND(100, 40000), x = (double)RND(-2000000, 2000000);
+            if (i % 4u == 0u) { /* at the int32 edge the coast heads for: its rest saturates */
+                x = dir * (INT32_MAX - d * (1.0 + q + q * q) - (double)RND(10, 1000));
+            }
+            for (unsigned k = 0; k < 4; k++) {
+                h[k] = (int32_t)lround(x) + (int32_t)RND(-3, 3);
+                x += dir * d;
+                d *= q;
+            }
+        } else {
+            for (unsigned k = 0; k < 4; k++) {
+                uint32_t hi = (uint32_t)RND(0, 0xFFFFFE);
+                h[k] = (int32_t)(hi << 8 | (uint32_t)RND(0, 255));
+            }
+        }
+        int32_t got = 0;
+        bool ok = leveler_alg3_coast_rest(h, dir, &got);
+        long double sg = dir, d1 = ((long double)h[1] - h[0]) * sg, d2 = ((long double)h[2] - h[1]) * sg,
+                    d3 = ((long double)h[3] - h[2]) * sg;
+        bool want = d3 >= LEVELER_ALG3_COAST_STEP_MIN_UM && d2 > d3 && d1 > d2 && d1 <= INT32_MAX && 2 * d2 >= d1 &&
+                    fabsl(d3 * d1 - d2 * d2) * LEVELER_ALG3_COAST_RATIO_TOL <= d2 * d2;
+        if (ok != want) { /* integer predicates: exact in long double (products < 2^64) */
+            fail_msg("acceptance differs at %d %d %d %d dir %d", h[0], h[1], h[2], h[3], dir);
+        }
+        if (!ok) {
+            continue;
+        }
+        accepted++;
+        long double rest = h[3] + sg * d3 * d3 / (d2 - d3);
+        long double clamped = rest > INT32_MAX ? INT32_MAX : (rest < INT32_MIN ? INT32_MIN : rest);
+        if (fabsl(got - clamped) > 0.5L) {
+            fail_msg("rest %d against %.3Lf at %d %d %d %d dir %d", got, clamped, h[0], h[1], h[2], h[3], dir);
+        }
+        saturated += clamped != rest;
+    }
+    assert_true(accepted > 50000u); /* the realistic half mostly passes */
+    assert_true(saturated > 0u);    /* and the saturation was reached */
+#undef RND
 }
 
 /* held (safe state, or not in auto): outputs off, back to idle. */
@@ -854,6 +1014,9 @@ int main(void)
         cmocka_unit_test_setup(test_filter_against_double, setup),
         cmocka_unit_test_setup(test_saturation, setup),
         cmocka_unit_test_setup(test_stalled_fill_draws_on_accumulator, setup),
+        cmocka_unit_test_setup(test_short_vent_coast_topped_up, setup),
+        cmocka_unit_test_setup(test_no_topup_in_band_fast_or_fill, setup),
+        cmocka_unit_test_setup(test_coast_rest_against_double, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -25,7 +25,10 @@
  *    sits on that line), a late one costs a crossing of the whole hysteresis
  *    gap; so the earlier of the two predictions wins;
  *  - then waits with the valves closed until the platform is at rest
- *    (at most alg3_settle_ms) before it may act again;
+ *    (at most alg3_settle_ms) before it may act again, unless a vent's coast,
+ *    extrapolated from its heights every LEVELER_ALG3_COAST_SAMPLE_MS, will
+ *    rest short of the band: then it is topped up at once, the vent again,
+ *    closing on the stiffness that very coast showed;
  *  - corrects a small departure (under LEVELER_ALG3_FINE_UM) without the
  *    accumulator and, once P2 is within LEVELER_ALG3_BURST_ZONE_PA of the
  *    line (or at once when the line is unknown), in bursts with a settle
@@ -77,6 +80,8 @@ typedef enum {
 #define LEVELER_ALG3_BURST_ZONE_PA 3000   /* bursts start this close to the line (0.44 psi) */
 #define LEVELER_ALG3_SETTLE_REST_MS 1000u /* a settle ends after this long at rest */
 #define LEVELER_ALG3_BLEED_MAX_MS 1500u   /* a vent bleeds a charged pipe this long at most (0.7 s seen) */
+#define LEVELER_ALG3_COAST_SAMPLE_MS 500u /* a settle samples its coast's height this often ... */
+#define LEVELER_ALG3_TOPUPS_MAX 1         /* ... and tops up a short one at most this often per departure */
 #define LEVELER_ALG3_PROBE_REACH_UM 12700 /* a probe closes 0.5 in from where it started whatever it saw */
 #define LEVELER_ALG3_PROBE_MOVED_MIN_UM 250   /* an early probe closes once moved this far at least ... */
 #define LEVELER_ALG3_PROBE_MOVED_MAX_UM 2540  /* ... (more with sensor noise: the caller's) and at most */
@@ -106,6 +111,14 @@ typedef struct {
     uint32_t burst_start_ms;
     uint16_t burst_ms;        /* length of the present burst */
     uint16_t moves;
+    bool close_line_known;    /* the last close's line was the present load's (learnt, not estimated) */
+    bool topup;               /* the present move tops up a short vent coast (short_coast in alg3.c) */
+    uint8_t topups;           /* top-ups since the departure's first move */
+    int32_t topup_k_pa_per_mm; /* the coast stiffness the short coast showed: the top-up closes on it */
+    uint8_t coast_samples;    /* heights sampled in the present settle (coast_um: the last four) */
+    int32_t coast_um[4];
+    bool coast_rest_valid;    /* the last sample showed a first-order coast, to rest at coast_rest_um */
+    int32_t coast_rest_um;
     int32_t move_from_um;     /* where the present (or last) move started, a probe's too */
     uint8_t probe;            /* leveler_alg3_probe_kind of the present move */
     int32_t probe_moved_um;   /* an early probe closes once moved this far */

@@ -34,6 +34,8 @@
 #define LEVELER_ALG3_FAST_UM_S 12000      /* a move this fast (0.47 in/s) heading out of the band is a load change */
 #define LEVELER_ALG3_EARLY_NUM 5          /* predicted travel x 5/4: an early close is cheap, a late one costs the gap */
 #define LEVELER_ALG3_EARLY_DEN 4
+#define LEVELER_ALG3_COAST_STEP_MIN_UM 250 /* a coast's step shorter than this (3 height counts) is noise */
+#define LEVELER_ALG3_COAST_RATIO_TOL 8     /* a first-order coast's step ratios agree within 1/8 */
 
 /* The filtered height and its rates. */
 typedef struct {
@@ -82,6 +84,29 @@ int32_t leveler_alg3_along_slope_pa(const leveler_settings *set, int32_t p_pa, i
  * asked for); else where the last motion stopped (on the line of that
  * motion), plus (or minus) alg3_gap_pa when that was the other line. */
 int32_t leveler_alg3_line_estimate(const leveler_alg3_lines *lines, const leveler_settings *set, bool up, int32_t h);
+
+/* Rest height (um) of a platform whose excess of P2 over the up line (or
+ * shortfall under the down line, line_pa) carries it k_pa_per_mm Pa per mm:
+ * h when the line is unknown (0), there is no excess, or k <= 0. One rounding
+ * (<= 0.5 um); the travel formed in int64 and the height saturated. */
+int32_t leveler_alg3_line_rest_um(bool up, int32_t h, int32_t p_spring_pa, int32_t line_pa, int32_t k_pa_per_mm);
+
+/* Where a first-order coast comes to rest, from four heights h[0..3] taken at
+ * equal spacing (dir +1 rising, -1 falling): its steps shrink by a constant
+ * ratio q, so what is left after h[3] is d3 q / (1 - q) = d3^2 / (d2 - d3)
+ * (Aitken's extrapolation). False (rest_um untouched) unless all three steps
+ * go the dir way, the last at least LEVELER_ALG3_COAST_STEP_MIN_UM, each
+ * shorter than the one before, the second at least half the first, and the two
+ * ratios within 1/LEVELER_ALG3_COAST_RATIO_TOL of each other: a slow coast that
+ * is first order (a fast one is at rest within a second anyway; a platform
+ * stopped by its momentum against a line, the 900 lb rig's vents, shrinks by
+ * 1/4 then 1/8). A falling coast stiffens as it compresses the spring's gas,
+ * so its ratio falls as it goes and the extrapolation overshoots its rest
+ * (1-5 mm on the 1000 lb rig's vents); a rising one softens and falls short of
+ * it (0.3 mm on the 900 lb diaphragm's fills). Fixed point: steps in int64 (a
+ * first step over 2^31 um is no coast), squares < 2^62, one rounding
+ * (<= 0.5 um), the rest saturated to int32. */
+bool leveler_alg3_coast_rest(const int32_t h[4], int8_t dir, int32_t *rest_um);
 
 /*
  * The early-close rule of a fill (up) or vent, pure: true when the platform is

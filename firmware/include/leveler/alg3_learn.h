@@ -71,6 +71,7 @@ typedef struct {
     bool settling;            /* valves closed after a move, until the platform is at rest */
     bool commissioning;       /* the load is held: a motion nobody asked for is a creep, not a load change */
     bool probe;               /* the present (or last) move is a commissioning probe */
+    bool topup;               /* the present move tops up a coast still under way: its start is no break-away */
     int32_t move_from_um;     /* where the present (or last) move (a probe) started */
     int32_t probe_moved_um;   /* an early probe closes once moved this far */
 } leveler_alg3_view;
