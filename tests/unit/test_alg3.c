@@ -894,6 +894,46 @@ static void test_short_close_estimates_from_its_rest(void **state)
     assert_in_range(leveler_alg3_line_estimate(&a.watch.lines, &set, true, at), p_line - 100, p_line + 100);
 }
 
+/* A small departure below the band whose up line lies 60 kPa over the estimate (a load added while
+ * the platform sat between the lines): the bursts double to LEVELER_ALG3_BURST_MAX_MS and then one
+ * fill runs on until the platform moves. The compressor raises P2 3 kPa/s; the platform breaks
+ * away at the line and rises 5 mm/s while the fill is on. The ladder alone would take at least
+ * 60 kPa / 4.8 kPa = 12 bursts of 1.6 s; here the fill ends in its sixth move, within 0.3 s of
+ * the break-away (1 mm seen through the height filter), with P2 under 1.5 kPa past the line. */
+static void test_far_line_reached_in_one_burst(void **state)
+{
+    (void)state;
+    int32_t h = LOWER_UM - 1000;
+    a.watch.lines.end_valid = true;
+    a.watch.lines.end_trusted = true;
+    a.watch.lines.end_dir = 1; /* stopped on the up line at P2_PA: the estimate */
+    a.watch.lines.end_height_um = h;
+    a.watch.lines.end_p_spring_pa = P2_PA;
+    for (unsigned i = 0; i < 500 && a.phase != LEVELER_ALG3_FILLING; i++) {
+        hold(h, 1);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    assert_true(a.fine);
+    const int32_t line = P2_PA + 60000;
+    int32_t p = P2_PA;
+    uint32_t broke_at = 0;
+    uint16_t first = a.moves;
+    for (unsigned i = 0; i < 12000 && !(broke_at != 0 && a.phase != LEVELER_ALG3_FILLING); i++) {
+        tick3(h, p, 101325);
+        bool filling = out.compressor && out.spring_valve;
+        p += filling ? 30 : 0;
+        if (filling && p >= line) {
+            h += 50;
+            broke_at = broke_at != 0 ? broke_at : now;
+        }
+    }
+    assert_true(broke_at != 0);
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    assert_in_range(now - broke_at, 0, 300);
+    assert_in_range(p - line, 0, 1500);
+    assert_int_equal(a.moves - first, 5); /* bursts of 0.2, 0.4, 0.8 and 1.6 s, then the one that reaches */
+}
+
 /* Double reference of the early-close rule over random states: the fixed-point
  * rule agrees except within 2 um (its rounding) of the target. */
 static void test_close_rule_against_double(void **state)
@@ -1017,6 +1057,7 @@ int main(void)
         cmocka_unit_test_setup(test_short_vent_coast_topped_up, setup),
         cmocka_unit_test_setup(test_no_topup_in_band_fast_or_fill, setup),
         cmocka_unit_test_setup(test_coast_rest_against_double, setup),
+        cmocka_unit_test_setup(test_far_line_reached_in_one_burst, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

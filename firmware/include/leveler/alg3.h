@@ -35,6 +35,8 @@
  *    after each, from LEVELER_ALG3_BURST_MS, doubling while they move
  *    nothing: a step of a hysteresis system cannot be smaller than what the
  *    excess at the break-away carries, so the excess is built up in steps;
+ *    after a LEVELER_ALG3_BURST_MAX_MS burst that moved nothing, one burst
+ *    runs on until the platform moves;
  *  - gives every output a minimum on and off time (dwell.h);
  *  - learns the coast times and the hysteresis lines from the rig's own
  *    motion (alg3_learn.h) and keeps them in the settings (flash);
@@ -72,7 +74,10 @@ typedef enum {
 #define LEVELER_ALG3_ACC_HELP_PA 6895     /* P3 must exceed P2 by 1 psi for its valve to open in a fill */
 #define LEVELER_ALG3_FINE_UM 2540          /* a departure under 0.1 in is corrected in bursts */
 #define LEVELER_ALG3_BURST_MS 100u        /* the first burst of a fine move */
-#define LEVELER_ALG3_BURST_MAX_MS 1600u   /* a burst that moved nothing doubles the next, up to this */
+#define LEVELER_ALG3_BURST_MAX_MS 1600u   /* a burst that moved nothing doubles the next, up to this ... */
+#define LEVELER_ALG3_REACH_MS 60000u      /* ... and after one that long, the next runs until the platform
+                                           * moves (this long at most): the line is far (a load added while
+                                           * the platform sat between the lines) */
 #define LEVELER_ALG3_ACC_MIN_UM 12700     /* the accumulator helps departures beyond 0.5 in (or fast ones) ... */
 #define LEVELER_ALG3_ASSIST_MS 2000u      /* ... and the first half of the gap of any fill the compressor alone
                                            * has not broken away in 2 s */
