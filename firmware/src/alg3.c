@@ -108,7 +108,7 @@ static void enter(leveler_alg3 *a, uint8_t phase, uint32_t now_ms)
 /* A fine move's next burst: the first LEVELER_ALG3_BURST_MS; after one that moved nothing twice as
  * long up to LEVELER_ALG3_BURST_MAX_MS; after a burst that long, LEVELER_ALG3_REACH_MS, closed once
  * the platform moves (burst_done): a line that far is no burst's size away (the compressor alone
- * raised P2 by 107 kPa in 30 bursts of 1.6 s, 72 s, on the 1000 lb diaphragm's random loads). */
+ * raised P2 by 107 kPa in 30 bursts, 26 of them 1.6 s, over 72 s on the 1000 lb diaphragm's random loads). */
 static uint16_t next_burst_ms(const leveler_alg3 *a)
 {
     if (!a->retry) {
