@@ -62,6 +62,16 @@ static void hold(int32_t h, unsigned ticks)
     }
 }
 
+/* The platform last stopped at h on the dir line (+1 up, -1 down) with P2 at p: the line estimate's point. */
+static void stopped_on_line(int8_t dir, int32_t h, int32_t p)
+{
+    a.watch.lines.end_valid = true;
+    a.watch.lines.end_trusted = true;
+    a.watch.lines.end_dir = dir;
+    a.watch.lines.end_height_um = h;
+    a.watch.lines.end_p_spring_pa = p;
+}
+
 static bool all_off(void)
 {
     return !out.compressor && !out.spring_valve && !out.vent_valve && !out.acc_valve;
@@ -736,11 +746,7 @@ static void test_learns_gap_and_estimates_line_before_breakaway(void **state)
 {
     (void)state;
     int32_t h0 = LOWER_UM - 20000;
-    a.watch.lines.end_valid = true;
-    a.watch.lines.end_trusted = true;
-    a.watch.lines.end_dir = -1;
-    a.watch.lines.end_height_um = h0;
-    a.watch.lines.end_p_spring_pa = 650000;
+    stopped_on_line(-1, h0, 650000);
     /* before any break-away the up line is estimated as the stop plus the gap */
     hold(h0, 1);
     assert_int_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h0), 650000 + set.alg3_gap_pa);
@@ -758,11 +764,7 @@ static void test_settle_waits_for_rest_after_close(void **state)
 {
     (void)state;
     int32_t h0 = UPPER_UM + 200; /* a small departure above, found after > 1 s at rest: a fine vent */
-    a.watch.lines.end_valid = true;
-    a.watch.lines.end_trusted = true;
-    a.watch.lines.end_dir = -1; /* stopped on the down line at P2_PA */
-    a.watch.lines.end_height_um = h0;
-    a.watch.lines.end_p_spring_pa = P2_PA;
+    stopped_on_line(-1, h0, P2_PA); /* stopped on the down line at P2_PA */
     for (unsigned i = 0; i < 500 && a.phase != LEVELER_ALG3_VENTING; i++) {
         hold(h0, 1);
     }
@@ -847,11 +849,7 @@ static void test_coasted_rest_not_a_line_point(void **state)
  * the estimate, predicts a long coast, so the fill closes at once and the controller settles. */
 static void close_on_up_estimate(int32_t h)
 {
-    a.watch.lines.end_valid = true;
-    a.watch.lines.end_trusted = true;
-    a.watch.lines.end_dir = 1;
-    a.watch.lines.end_height_um = h;
-    a.watch.lines.end_p_spring_pa = 650000;
+    stopped_on_line(1, h, 650000);
     hold(h, 1);
     for (unsigned i = 0; i < 100 && a.phase != LEVELER_ALG3_SETTLING; i++) {
         tick3(h, 660000, 101325);
@@ -904,11 +902,7 @@ static void test_far_line_reached_in_one_burst(void **state)
 {
     (void)state;
     int32_t h = LOWER_UM - 1000;
-    a.watch.lines.end_valid = true;
-    a.watch.lines.end_trusted = true;
-    a.watch.lines.end_dir = 1; /* stopped on the up line at P2_PA: the estimate */
-    a.watch.lines.end_height_um = h;
-    a.watch.lines.end_p_spring_pa = P2_PA;
+    stopped_on_line(1, h, P2_PA); /* stopped on the up line at P2_PA: the estimate */
     for (unsigned i = 0; i < 500 && a.phase != LEVELER_ALG3_FILLING; i++) {
         hold(h, 1);
     }
