@@ -275,6 +275,7 @@ void leveler_alg3_learn(leveler_alg3_watch *w, const leveler_alg3_view *v, const
         bool idle = v->valves_dir == 0 && !v->settling;
         if (idle && !v->commissioning) {
             w->lines.lines_valid = false; /* nobody asked for this motion: the load has changed */
+            w->lines.end_trusted = false; /* and where the last motion ended is the old load's */
         }
         /* a probe closes on the first millimetre, before the rate window sees the motion: its settle's */
         bool probed = v->probe && v->settling && w->close_dir == dir;

@@ -128,6 +128,36 @@ static void test_fast_fall_acts_inside_band(void **state)
     assert_true(h > LOWER_UM);
 }
 
+/* A load added while the platform rests in the band, after a fill that ended on the old load's up
+ * line at 627 kPa: the platform falls 1 in/s and P2 climbs past 627 kPa as the spring is squeezed.
+ * Where the last motion ended is the old load's: the fill the fall starts runs on while the
+ * platform falls (the code before closed it at once on an excess over that line and opened it
+ * again the next tick, then sat 5 s while the 1000 lb rig sank 0.75 in: random loads, seed 2). */
+static void test_load_change_forgets_where_the_last_motion_ended(void **state)
+{
+    (void)state;
+    int32_t h = UPPER_UM - 100, p2 = 627000;
+    for (unsigned i = 0; i < 100; i++) {
+        tick3(h, p2, 101325);
+    }
+    stopped_on_line(1, h, p2);
+    assert_int_not_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h), 0);
+    while (a.phase == LEVELER_ALG3_IDLE && h > LOWER_UM - 10000) {
+        h -= 254;
+        p2 += 1000;
+        tick3(h, p2, 101325);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    for (unsigned i = 0; i < 30; i++) { /* 0.3 s more of the fall */
+        h -= 254;
+        p2 += 1000;
+        tick3(h, p2, p2);
+        assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    }
+    assert_true(out.compressor && out.spring_valve);
+    assert_int_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h), 0);
+}
+
 /* A departure above the band vents; the accumulator valve stays shut without one. */
 static void test_departure_above_vents(void **state)
 {
@@ -1020,6 +1050,7 @@ int main(void)
         cmocka_unit_test_setup(test_small_departure_waits_for_persistence, setup),
         cmocka_unit_test_setup(test_large_departure_acts_at_once, setup),
         cmocka_unit_test_setup(test_fast_fall_acts_inside_band, setup),
+        cmocka_unit_test_setup(test_load_change_forgets_where_the_last_motion_ended, setup),
         cmocka_unit_test_setup(test_departure_above_vents, setup),
         cmocka_unit_test_setup(test_vent_bleeds_a_charged_pipe_first, setup),
         cmocka_unit_test_setup(test_vent_bleeds_for_a_bounded_time, setup),
