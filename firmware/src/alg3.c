@@ -278,6 +278,8 @@ static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int3
         a->coast_um[0] = h; /* the coast's first height: the close's */
         a->coast_samples = 1;
         a->coast_rest_valid = false;
+        a->coast_peak_um_s = 0;
+        a->coast_slowed = false;
         enter(a, LEVELER_ALG3_SETTLING, now_ms);
     }
 }
@@ -381,15 +383,36 @@ static bool short_coast(leveler_alg3 *a, const leveler_settings *set, uint32_t n
     return true;
 }
 
+/* A fast motion the close's own way after its coast had slowed to half its fastest, now faster than
+ * the coast ever went: a load change (a coast only slows). Tracks the coast's fastest motion
+ * (um/s, the filter's rate: far inside int32, so its negation cannot overflow). */
+static bool pushed_on(leveler_alg3 *a, int8_t fast)
+{
+    int32_t along = a->watch.close_dir < 0 ? -a->filter.rate_um_s : a->filter.rate_um_s;
+    bool pushed = fast != 0 && fast == a->watch.close_dir && a->coast_slowed && along > a->coast_peak_um_s;
+    if (along > a->coast_peak_um_s) {
+        a->coast_peak_um_s = along;
+    } else if (along < a->coast_peak_um_s / 2) {
+        a->coast_slowed = true;
+    }
+    return pushed;
+}
+
 /* Valves closed until the platform is at rest (or alg3_settle_ms); then the
- * coast is learnt from. A fast motion against the move just closed is a load
- * change and is acted on at once; a vent's coast that will rest short of the
- * band is topped up at once (short_coast). */
+ * coast is learnt from. A fast motion against the move just closed, or one
+ * the move's own way that pushed_on sees, is a load change and is acted on at
+ * once; a vent's coast that will rest short of the band is topped up at once
+ * (short_coast). */
 static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t h, uint32_t now_ms,
                      leveler_settings *learnt, bool *changed)
 {
     int8_t fast = fast_departure(a, set, h);
-    if (fast != 0 && fast == -a->watch.close_dir) {
+    bool pushed = pushed_on(a, fast);
+    if (pushed) {
+        a->watch.lines.lines_valid = false; /* the load has changed: its lines, and where the */
+        a->watch.lines.end_trusted = false; /* last motion ended, are the old load's */
+    }
+    if (fast != 0 && (fast == -a->watch.close_dir || pushed)) {
         leveler_alg3_forget_close(&a->watch);
         start_move(a, fast, INT32_MAX, now_ms);
         return;

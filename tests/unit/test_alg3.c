@@ -824,6 +824,43 @@ static void test_settle_waits_for_rest_after_close(void **state)
     assert_int_equal(a.moves, 1);
 }
 
+/* After a vent's close the platform coasts down: faster for 0.3 s (to 15 mm/s, its predicted rest
+ * under the band), then slowing (tau 0.3 s) to 1.5 mm/s; nothing is done, the coast is the close's
+ * own. Then a load is added: it falls 25 mm/s, faster than the coast ever went. That is acted on at
+ * once, a fill within 0.2 s and 5 mm of the push (the code before waited for rest: 3.6 s on the
+ * 1000 lb diaphragm's random loads, seed 3, the platform on its bottom stop 1.9 in down). */
+static void test_push_after_a_slowed_coast_is_a_load_change(void **state)
+{
+    (void)state;
+    int32_t h, p2;
+    vent_to_close(2540, &h, &p2);
+    double y = h, v = 0.0;
+    for (unsigned i = 0; i < 30; i++) { /* the close's coast speeds up: 0 -> 15 mm/s */
+        v += 0.5;
+        y -= v * 10.0;
+        tick3((int32_t)lround(y), p2, 101325);
+        assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    }
+    for (unsigned i = 0; i < 70; i++) { /* ... and slows to 1.5 mm/s */
+        v *= exp(-10.0 / 300.0);
+        y -= v * 10.0;
+        tick3((int32_t)lround(y), p2, 101325);
+        assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    }
+    assert_true(y > LOWER_UM);
+    double pushed_at = y;
+    unsigned ticks = 0;
+    while (a.phase == LEVELER_ALG3_SETTLING && ticks < 100) { /* a load added: 25 mm/s down */
+        y -= 250.0;
+        tick3((int32_t)lround(y), p2, 101325);
+        ticks++;
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    assert_true(ticks <= 20);
+    assert_true(pushed_at - y <= 5000.0);
+    assert_int_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, (int32_t)lround(y)), 0);
+}
+
 /* A vent from 20 mm above the band: P2 falls 100 Pa a tick until the platform
  * breaks away, then it falls at fall_um_tick until the vent closes, and comes
  * to rest within 100 ticks with P2 rest_rise_pa over the break-away. Returns
@@ -1074,6 +1111,7 @@ int main(void)
         cmocka_unit_test_setup(test_failed_estimate_forgotten, setup),
         cmocka_unit_test_setup(test_short_close_estimates_from_its_rest, setup),
         cmocka_unit_test_setup(test_settle_waits_for_rest_after_close, setup),
+        cmocka_unit_test_setup(test_push_after_a_slowed_coast_is_a_load_change, setup),
         cmocka_unit_test_setup(test_coasted_rest_not_a_line_point, setup),
         cmocka_unit_test_setup(test_close_rule_against_double, setup),
         cmocka_unit_test_setup(test_filter_against_double, setup),

@@ -123,6 +123,8 @@ typedef struct {
     uint8_t coast_samples;    /* heights sampled in the present settle (coast_um: the last four) */
     int32_t coast_um[4];
     bool coast_rest_valid;    /* the last sample showed a first-order coast, to rest at coast_rest_um */
+    int32_t coast_peak_um_s;  /* the present settle's fastest motion the close's way (um/s) */
+    bool coast_slowed;        /* ... and it has since slowed to half that */
     int32_t coast_rest_um;
     int32_t move_from_um;     /* where the present (or last) move started, a probe's too */
     uint8_t probe;            /* leveler_alg3_probe_kind of the present move */
