@@ -139,7 +139,9 @@ bool leveler_alg3_close_now(const leveler_settings *set, bool up, int32_t h, int
     uint16_t coast = up ? set->alg3_coast_up_ms : set->alg3_coast_down_ms;
     int64_t by_rate = along > LEVELER_ALG3_STILL_UM_S ? stretched(h, leveler_alg3_predict_um(h, rate_um_s, coast)) : h;
     int32_t line_rest = line_prediction(set, up, h, p_spring_pa, line_pa);
-    int64_t by_line = line_sure ? (int64_t)line_rest : stretched(h, line_rest);
+    /* P2 past the line is an excess that carries the platform the move's way only once it moves that
+     * way: while it still goes the other way (the load changed) P2 there is the squeeze, not an excess */
+    int64_t by_line = along < -LEVELER_ALG3_STILL_UM_S ? h : line_sure ? (int64_t)line_rest : stretched(h, line_rest);
     if (up) {
         return h >= target || h > set->band_upper_um || by_rate >= target || by_line >= target;
     }

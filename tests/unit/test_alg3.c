@@ -158,6 +158,47 @@ static void test_load_change_forgets_where_the_last_motion_ended(void **state)
     assert_int_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h), 0);
 }
 
+/* A load added while a fill's coast is still settling, the last motion ended on the old load's up
+ * line at 627 kPa: the fall against the close starts a fill, and P2 climbs past that line as the
+ * spring is squeezed. That is no excess to carry the platform up while it still falls: the fill runs
+ * on through 1 s of the fall though the old line is still estimated (the code before closed it when
+ * P2 passed the line and waited for rest: the 1000 lb rig's random loads, seed 2, closed 0.14 s
+ * after it opened and sank 0.72 in in 5 s). */
+static void test_fill_does_not_close_on_a_line_while_falling(void **state)
+{
+    (void)state;
+    int32_t h = LOWER_UM - 5000, p2 = 627000;
+    for (unsigned i = 0; i < 100; i++) {
+        tick3(h, p2, 101325);
+    }
+    while (a.phase == LEVELER_ALG3_FILLING && h < UPPER_UM) {
+        h += 50;
+        tick3(h, p2, 101325);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    for (unsigned i = 0; i < 30; i++) { /* coasting on towards the target */
+        h += (TARGET_UM - h) / 20;
+        tick3(h, p2, 101325);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
+    stopped_on_line(1, h, p2);
+    assert_int_not_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h), 0);
+    while (a.phase == LEVELER_ALG3_SETTLING && h > LOWER_UM - 10000) {
+        h -= 254;
+        p2 += 1000;
+        tick3(h, p2, 101325);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    for (unsigned i = 0; i < 100; i++) { /* 1 s more of the fall (the valves' minimum off time) */
+        h -= 254;
+        p2 += 1000;
+        tick3(h, p2, p2);
+        assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    }
+    assert_true(out.compressor && out.spring_valve);
+    assert_int_not_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h), 0); /* still there */
+}
+
 /* A departure above the band vents; the accumulator valve stays shut without one. */
 static void test_departure_above_vents(void **state)
 {
@@ -1021,7 +1062,8 @@ static void test_close_rule_against_double(void **state)
         double by_rate = along > LEVELER_ALG3_STILL_UM_S ? h + 1.25 * rate * coast / 1000.0 : h;
         double excess = up ? (double)p2 - line : (double)line - p2;
         double stretch = sure ? 1.0 : 1.25; /* a line learnt in this move is used as it is */
-        double by_line = (line != 0 && excess > 0) ? h + (up ? 1.0 : -1.0) * stretch * excess * 1000.0 / k : h;
+        bool against = along < -LEVELER_ALG3_STILL_UM_S; /* moving the other way: P2 is no excess */
+        double by_line = (line != 0 && excess > 0 && !against) ? h + (up ? 1.0 : -1.0) * stretch * excess * 1000.0 / k : h;
         bool want = up ? (h >= TARGET_UM || h > UPPER_UM || by_rate >= TARGET_UM || by_line >= TARGET_UM)
                        : (h <= TARGET_UM || h < LOWER_UM || by_rate <= TARGET_UM || by_line <= TARGET_UM);
         if (got != want) {
@@ -1088,6 +1130,7 @@ int main(void)
         cmocka_unit_test_setup(test_large_departure_acts_at_once, setup),
         cmocka_unit_test_setup(test_fast_fall_acts_inside_band, setup),
         cmocka_unit_test_setup(test_load_change_forgets_where_the_last_motion_ended, setup),
+        cmocka_unit_test_setup(test_fill_does_not_close_on_a_line_while_falling, setup),
         cmocka_unit_test_setup(test_departure_above_vents, setup),
         cmocka_unit_test_setup(test_vent_bleeds_a_charged_pipe_first, setup),
         cmocka_unit_test_setup(test_vent_bleeds_for_a_bounded_time, setup),
