@@ -112,6 +112,25 @@ def beside_effects(calibration, ranking):
     return calibration.pop("handles")
 
 
+def pinned(calibration):
+    """The moved values the calibration left at the edge of the range a config may be
+    wrong by (calibrate.NOMINALS' rel factors, chosen from the physics): a user who
+    mis-set that value would have had to be wrong by more than the range allows. A
+    physical limit (a discharge coefficient's cap of 1, the polytropic exponent's
+    1.0 .. 1.4) is no such edge: a rig may sit on it."""
+    rel = {n.name: n for n in calibrate.NOMINALS if n.rel}
+    out = []
+    for p in calibration["parameters"]:
+        n = rel.get(p["name"])
+        if not (n and p["moved"] and p["at_bound"]):
+            continue
+        lo, hi = p["range"]
+        capped = n.cap is not None and hi >= n.cap and p["value"] > 0.5 * (lo + hi)
+        if not capped:
+            out.append(p["name"])
+    return out
+
+
 def effect_first(calibration, best, gate, progress):
     """Whether the gap is the leading effect's rather than mis-set nominal values.
     Both were fitted on the calibration runs (the effect on the config as given) and
@@ -119,13 +138,22 @@ def effect_first(calibration, best, gate, progress):
     when the calibration leaves the smaller held-out gap: it stands, and an effect
     must explain what it leaves (calibrated_basis). Nominal values come first: when
     the two are alike (within CALIBRATION_FIRST_PCT, or closer than the noise gate)
-    the calibration still stands, the effect recorded as its `rival`. Otherwise True:
-    the calibration, which bends nominal values to mimic the effect, is not kept (the
-    effect's `rival` when the two are alike)."""
+    the calibration still stands, the effect recorded as its `rival`, unless it
+    needed a value pinned at the edge of its range (pinned): then the effect is
+    named. Otherwise True: the calibration, which bends nominal values to mimic the
+    effect, is not kept (the effect's `rival` when the two are alike)."""
     g_cal, g_fx = calibration["holdout_gap"]["after"], best["holdout_gap"]
     share = CALIBRATION_FIRST_PCT / 100.0
+    alike_gaps = g_cal > (1.0 - share) * g_fx or g_fx - g_cal < gate
+    edge = pinned(calibration)
+    if g_cal <= g_fx and alike_gaps and calibration["moved"] and edge:
+        _record_rival(calibration, best["effect"], g_fx, g_cal)
+        set_aside(calibration, best["effect"], g_fx,
+                  f"alike, but the calibration needs {', '.join(edge)} at the edge of its range: the effect "
+                  f"is named, the calibration is its look-alike", progress)
+        return True
     if g_cal <= g_fx:
-        if (g_cal > (1.0 - share) * g_fx or g_fx - g_cal < gate) and calibration["moved"]:
+        if alike_gaps and calibration["moved"]:
             _record_rival(calibration, best["effect"], g_fx, g_cal)
             calibration["why"] += f"; {best['effect']} alone leaves {g_fx:.3f}: alike, the calibration stands"
         progress(f"      {best['effect']} leaves a held-out gap of {g_fx:.3f}, calibration {g_cal:.3f}: "
