@@ -128,6 +128,25 @@ static void test_fast_fall_acts_inside_band(void **state)
     assert_true(h > LOWER_UM);
 }
 
+/* A load added while the controller is in `phase`: the platform falls 1 in/s and P2 climbs 1 kPa a
+ * tick as the spring is squeezed. The fall starts a fill, which runs on through `ticks` more of it. */
+static void falls_into_a_fill(int32_t *h, int32_t *p2, int phase, unsigned ticks)
+{
+    while ((int)a.phase == phase && *h > LOWER_UM - 10000) {
+        *h -= 254;
+        *p2 += 1000;
+        tick3(*h, *p2, 101325);
+    }
+    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    for (unsigned i = 0; i < ticks; i++) {
+        *h -= 254;
+        *p2 += 1000;
+        tick3(*h, *p2, *p2);
+        assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
+    }
+    assert_true(out.compressor && out.spring_valve);
+}
+
 /* A load added while the platform rests in the band, after a fill that ended on the old load's up
  * line at 627 kPa: the platform falls 1 in/s and P2 climbs past 627 kPa as the spring is squeezed.
  * Where the last motion ended is the old load's: the fill the fall starts runs on while the
@@ -142,19 +161,7 @@ static void test_load_change_forgets_where_the_last_motion_ended(void **state)
     }
     stopped_on_line(1, h, p2);
     assert_int_not_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h), 0);
-    while (a.phase == LEVELER_ALG3_IDLE && h > LOWER_UM - 10000) {
-        h -= 254;
-        p2 += 1000;
-        tick3(h, p2, 101325);
-    }
-    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
-    for (unsigned i = 0; i < 30; i++) { /* 0.3 s more of the fall */
-        h -= 254;
-        p2 += 1000;
-        tick3(h, p2, p2);
-        assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
-    }
-    assert_true(out.compressor && out.spring_valve);
+    falls_into_a_fill(&h, &p2, LEVELER_ALG3_IDLE, 30); /* and 0.3 s more of the fall */
     assert_int_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h), 0);
 }
 
@@ -183,19 +190,7 @@ static void test_fill_does_not_close_on_a_line_while_falling(void **state)
     assert_int_equal(a.phase, LEVELER_ALG3_SETTLING);
     stopped_on_line(1, h, p2);
     assert_int_not_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h), 0);
-    while (a.phase == LEVELER_ALG3_SETTLING && h > LOWER_UM - 10000) {
-        h -= 254;
-        p2 += 1000;
-        tick3(h, p2, 101325);
-    }
-    assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
-    for (unsigned i = 0; i < 100; i++) { /* 1 s more of the fall (the valves' minimum off time) */
-        h -= 254;
-        p2 += 1000;
-        tick3(h, p2, p2);
-        assert_int_equal(a.phase, LEVELER_ALG3_FILLING);
-    }
-    assert_true(out.compressor && out.spring_valve);
+    falls_into_a_fill(&h, &p2, LEVELER_ALG3_SETTLING, 100); /* and 1 s more (the valves' minimum off time) */
     assert_int_not_equal(leveler_alg3_line_estimate(&a.watch.lines, &set, true, h), 0); /* still there */
 }
 
