@@ -252,6 +252,18 @@ static bool topup_done(const leveler_alg3 *a, const leveler_settings *set, int32
     return h <= target || rest <= aim;
 }
 
+/* The line a move closes on. A down line estimated across the gap (from where a rise stopped on its
+ * up line) is aimed an eighth of the gap under: the default gap is what the lightly damped 900 lb rig
+ * shows from the end of a drop, which stops past its line on its momentum; the thesis's lines lie
+ * 72-76 kPa apart, and a vent closing on the plain estimate lands short and creeps in by bursts
+ * (thesis-1000lb -200 lb). Fills keep it: a fill not closing on it at all was measured worse. */
+static int32_t close_line(const leveler_alg3 *a, const leveler_settings *set, bool up, int32_t line)
+{
+    const leveler_alg3_lines *l = &a->watch.lines;
+    bool across_gap = !line_known(a, set, up) && l->end_valid && l->end_trusted && (l->end_dir > 0) != up;
+    return (up || !across_gap || line == 0) ? line : leveler_sat_i32((int64_t)line - set->alg3_gap_pa / 8);
+}
+
 /* Filling or venting: close when leveler_alg3_close_now() says so, or a burst is done (a probe:
  * probe_done; a top-up: topup_done). */
 static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int32_t p_spring_pa, uint32_t now_ms)
@@ -266,7 +278,8 @@ static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int3
                 : a->topup                          ? topup_done(a, set, h, p_spring_pa, line)
                                                     : leveler_alg3_close_now(set, up, h,
                                                                              leveler_alg3_prediction_rate(&a->filter),
-                                                                             p_spring_pa, line, sure);
+                                                                             p_spring_pa, close_line(a, set, up, line),
+                                                                             sure);
     if (a->probe != LEVELER_ALG3_PROBE_NONE && up) {
         /* a probe crossing the gap draws on the accumulator for its first half (an estimated line: the
          * other line's stop plus the gap), then breaks away on the compressor alone: a small excess */
@@ -383,6 +396,18 @@ static bool short_coast(leveler_alg3 *a, const leveler_settings *set, uint32_t n
     return true;
 }
 
+/* Still by the rate is not yet at rest while the coast's extrapolation (sample_coast) has more than
+ * a quarter band to go and will take the platform to another side of the band: a heavily damped
+ * platform (the 1000 lb rig's damping down is 16 times the 900 lb rig's) creeps into the band under
+ * LEVELER_ALG3_STILL_UM_S for seconds, and a settle ended there vented the creep again, through the
+ * band. A creep that will rest outside anyway is acted on as before. */
+static bool creeping(const leveler_alg3 *a, const leveler_settings *set, int32_t h)
+{
+    int64_t band = (int64_t)set->band_upper_um - set->band_lower_um;
+    int64_t left = (int64_t)a->coast_rest_um - h;
+    return a->coast_rest_valid && (left < 0 ? -left : left) > band / 4 && side(set, a->coast_rest_um) != side(set, h);
+}
+
 /* A fast motion the close's own way after its coast had slowed to half its fastest, now faster than
  * the coast ever went: a load change (a coast only slows). Tracks the coast's fastest motion
  * (um/s, the filter's rate: far inside int32, so its negation cannot overflow). */
@@ -422,7 +447,7 @@ static void settling(leveler_alg3 *a, const leveler_settings *set, int32_t h, ui
         return;
     }
     uint32_t in_phase = now_ms - a->phase_start_ms;
-    bool at_rest = a->watch.still_ms >= LEVELER_ALG3_SETTLE_REST_MS;
+    bool at_rest = a->watch.still_ms >= LEVELER_ALG3_SETTLE_REST_MS && !creeping(a, set, h);
     if (at_rest || in_phase >= set->alg3_settle_ms) {
         if (a->probe != LEVELER_ALG3_PROBE_NONE) {
             /* a probe's coast may creep on below the rate's rest: commissioning learns from it once

@@ -24,8 +24,11 @@
  *    close is cheap (a further move the same way starts at once, the platform
  *    sits on that line), a late one costs a crossing of the whole hysteresis
  *    gap; so the earlier of the two predictions wins;
+ *  - a vent whose down line is only estimated across the gap (from where a
+ *    rise stopped) aims an eighth of alg3_gap_pa under that estimate;
  *  - then waits with the valves closed until the platform is at rest
- *    (at most alg3_settle_ms) before it may act again, unless a vent's coast,
+ *    (at most alg3_settle_ms; a slow creep whose extrapolated rest lies on
+ *    another side of the band is not yet rest) before it may act again, unless a vent's coast,
  *    extrapolated from its heights every LEVELER_ALG3_COAST_SAMPLE_MS, will
  *    rest short of the band: then it is topped up at once, the vent again,
  *    closing on the stiffness that very coast showed;
