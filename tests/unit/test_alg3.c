@@ -479,7 +479,7 @@ static void test_no_topup_in_band_fast_or_fill(void **state)
 }
 
 /* A vent's slow coast (first order, tau 4 s: the 1000 lb rig's damping down) to a rest at the
- * target: it creeps under the rate's still threshold (1.5 mm/s) while still 2.2 mm over the band.
+ * target: it creeps under the rate's still threshold (1.5 mm/s) while more than 2 mm over the band.
  * Rest by the rate alone ended the settle 1 s later and vented that creep again; while four heights
  * 500 ms apart put the rest more than a quarter band on, the settle goes on, and the platform
  * creeps into the band with the valves shut. */
