@@ -227,14 +227,6 @@ static bool assist(const leveler_alg3 *a, const leveler_settings *set, bool up, 
     return (int64_t)line - p_spring_pa > set->alg3_gap_pa / 2; /* no line (0): never */
 }
 
-/* Whether the line of a move the up (or down) way at h is the present load's: learnt in this move or
- * since the last load change (leveler_alg3_line_estimate then reads the setting), not estimated. */
-static bool line_known(const leveler_alg3 *a, const leveler_settings *set, bool up)
-{
-    const leveler_alg3_lines *l = &a->watch.lines;
-    return (l->line_fresh || l->lines_valid) && (up ? set->alg3_up_pa : set->alg3_down_pa) != 0;
-}
-
 /* A top-up (short_coast) closes where the coast stiffness the short coast before it showed lands
  * the platform halfway from the target to the band's upper edge, with no stretch (that stiffness is
  * this rig's at this load), or at the target; at once when the line is no longer the present load's
@@ -243,7 +235,7 @@ static bool line_known(const leveler_alg3 *a, const leveler_settings *set, bool 
 static bool topup_done(const leveler_alg3 *a, const leveler_settings *set, int32_t h, int32_t p_spring_pa,
                        int32_t line)
 {
-    if (line == 0 || !line_known(a, set, false)) {
+    if (line == 0 || !leveler_alg3_line_known(&a->watch.lines, set, false)) {
         return true;
     }
     int32_t target = leveler_alg3_target_um(set);
@@ -259,8 +251,7 @@ static bool topup_done(const leveler_alg3 *a, const leveler_settings *set, int32
  * (thesis-1000lb -200 lb). Fills keep it: a fill not closing on it at all was measured worse. */
 static int32_t close_line(const leveler_alg3 *a, const leveler_settings *set, bool up, int32_t line)
 {
-    const leveler_alg3_lines *l = &a->watch.lines;
-    bool across_gap = !line_known(a, set, up) && l->end_valid && l->end_trusted && (l->end_dir > 0) != up;
+    bool across_gap = leveler_alg3_line_across_gap(&a->watch.lines, set, up);
     return (up || !across_gap || line == 0) ? line : leveler_sat_i32((int64_t)line - set->alg3_gap_pa / 8);
 }
 
@@ -287,7 +278,7 @@ static void moving(leveler_alg3 *a, const leveler_settings *set, int32_t h, int3
     }
     if (done || burst) {
         leveler_alg3_note_close(&a->watch, &a->filter, up ? 1 : -1, p_spring_pa, line);
-        a->close_line_known = line != 0 && line_known(a, set, up);
+        a->close_line_known = line != 0 && leveler_alg3_line_known(&a->watch.lines, set, up);
         a->coast_um[0] = h; /* the coast's first height: the close's */
         a->coast_samples = 1;
         a->coast_rest_valid = false;

@@ -72,19 +72,28 @@ int32_t leveler_alg3_along_slope_pa(const leveler_settings *set, int32_t p_pa, i
     return leveler_sat_i32((int64_t)p_pa + leveler_div_round_i64(dh * set->alg3_line_slope_pa_per_mm, 1000));
 }
 
+bool leveler_alg3_line_known(const leveler_alg3_lines *lines, const leveler_settings *set, bool up)
+{
+    return (lines->line_fresh || lines->lines_valid) && (up ? set->alg3_up_pa : set->alg3_down_pa) != 0;
+}
+
+bool leveler_alg3_line_across_gap(const leveler_alg3_lines *lines, const leveler_settings *set, bool up)
+{
+    return !leveler_alg3_line_known(lines, set, up) && lines->end_valid && lines->end_trusted &&
+           (lines->end_dir > 0) != up;
+}
+
 int32_t leveler_alg3_line_estimate(const leveler_alg3_lines *lines, const leveler_settings *set, bool up, int32_t h)
 {
-    if (lines->line_fresh || lines->lines_valid) {
-        int32_t at_target = up ? set->alg3_up_pa : set->alg3_down_pa;
-        if (at_target != 0) {
-            return leveler_alg3_along_slope_pa(set, at_target, leveler_alg3_target_um(set), h);
-        }
+    if (leveler_alg3_line_known(lines, set, up)) {
+        return leveler_alg3_along_slope_pa(set, up ? set->alg3_up_pa : set->alg3_down_pa, leveler_alg3_target_um(set),
+                                           h);
     }
     if (!lines->end_valid || !lines->end_trusted) {
         return 0;
     }
     int32_t p = leveler_alg3_along_slope_pa(set, lines->end_p_spring_pa, lines->end_height_um, h);
-    if ((lines->end_dir > 0) == up) {
+    if (!leveler_alg3_line_across_gap(lines, set, up)) {
         return p;
     }
     return leveler_sat_i32((int64_t)p + (up ? set->alg3_gap_pa : -set->alg3_gap_pa));

@@ -78,6 +78,14 @@ int32_t leveler_alg3_predict_um(int32_t height_um, int32_t rate_um_s, uint16_t c
 /* A line pressure p_pa seen at from_um carried to to_um along alg3_line_slope_pa_per_mm (Pa). */
 int32_t leveler_alg3_along_slope_pa(const leveler_settings *set, int32_t p_pa, int32_t from_um, int32_t to_um);
 
+/* Whether the present load's up (or down) line is known: learnt in this move or
+ * since the last load change (a motion nobody asked for), and set. */
+bool leveler_alg3_line_known(const leveler_alg3_lines *lines, const leveler_settings *set, bool up);
+
+/* Whether leveler_alg3_line_estimate's up (or down) line is estimated across
+ * the gap: not known, and the last motion (trusted) stopped on the other line. */
+bool leveler_alg3_line_across_gap(const leveler_alg3_lines *lines, const leveler_settings *set, bool up);
+
 /* The up (or down) line at height h for the present load, Pa absolute, 0 when
  * unknown: the learnt line (alg3_up_pa / alg3_down_pa along the slope) when it
  * was learnt in this move or since the last load change (a motion nobody
