@@ -28,10 +28,11 @@
  *    rise stopped) aims an eighth of alg3_gap_pa under that estimate;
  *  - then waits with the valves closed until the platform is at rest
  *    (at most alg3_settle_ms; a slow creep whose extrapolated rest lies on
- *    another side of the band is not yet rest) before it may act again, unless a vent's coast,
- *    extrapolated from its heights every LEVELER_ALG3_COAST_SAMPLE_MS, will
- *    rest short of the band: then it is topped up at once, the vent again,
- *    closing on the stiffness that very coast showed;
+ *    another side of the band is not yet rest) before it may act again,
+ *    unless a vent's coast, extrapolated from its heights every
+ *    LEVELER_ALG3_COAST_SAMPLE_MS, will rest short of the band: then it is
+ *    topped up at once, the vent again, closing on the stiffness that very
+ *    coast showed;
  *  - corrects a small departure (under LEVELER_ALG3_FINE_UM) without the
  *    accumulator and, once P2 is within LEVELER_ALG3_BURST_ZONE_PA of the
  *    line (or at once when the line is unknown), in bursts with a settle
